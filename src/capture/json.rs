@@ -1,0 +1,185 @@
+//! The JSON documents of the capture format (../shared/spec/capture-format.md), as serde types,
+//! and their conversion to validated values. Unknown fields are allowed (the format may grow).
+
+use std::collections::BTreeMap;
+use std::path::Path;
+
+use nalgebra::Vector3;
+use serde::{Deserialize, Serialize, de::DeserializeOwned};
+
+use crate::error::{Error, Result};
+use crate::geometry::Pose;
+
+pub const CAPTURE_FORMAT: &str = "jawtrack-capture/1";
+pub const TRACKS_FORMAT: &str = "jawtrack-tracks/1";
+
+/// Tolerance for "is a rotation" in the spec: readers reject |RᵀR − I| above this.
+pub const ROTATION_TOLERANCE: f64 = 1e-3;
+
+#[derive(Debug, Clone, Serialize, Deserialize)]
+pub struct CaptureJson {
+    pub format: String,
+    pub cameras: Vec<String>,
+    pub frames: FramesJson,
+    pub meshes: MeshesJson,
+    pub boi: BoiJson,
+    pub masks: MasksJson,
+}
+
+#[derive(Debug, Clone, Copy, Serialize, Deserialize)]
+pub struct FramesJson {
+    pub first: u32,
+    pub count: u32,
+}
+
+#[derive(Debug, Clone, Serialize, Deserialize)]
+pub struct MeshesJson {
+    pub upper: String,
+    pub lower: String,
+    /// jawtrack extension: a mandible mesh (teeth, ramus, condyles) in the lower arch's frame.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub mandible: Option<String>,
+}
+
+#[derive(Debug, Clone, Serialize, Deserialize)]
+#[serde(untagged)]
+pub enum BoiJson {
+    Group { group: String },
+    FaceLists { upper: String, lower: String },
+}
+
+#[derive(Debug, Clone, Serialize, Deserialize)]
+pub struct MasksJson {
+    pub dir: String,
+    pub mode: String,
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub upper: Option<i64>,
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub lower: Option<i64>,
+}
+
+#[derive(Debug, Clone, Serialize, Deserialize)]
+pub struct CameraJson {
+    pub width: i64,
+    pub height: i64,
+    pub fx: f64,
+    pub fy: f64,
+    pub cx: f64,
+    pub cy: f64,
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub distortion: Option<Vec<f64>>,
+    pub rotation: [[f64; 3]; 3],
+    pub translation: [f64; 3],
+}
+
+#[derive(Debug, Clone, Copy, Serialize, Deserialize, PartialEq)]
+pub struct PoseJson {
+    pub rotation: [[f64; 3]; 3],
+    pub translation: [f64; 3],
+}
+
+impl From<&Pose> for PoseJson {
+    fn from(p: &Pose) -> Self {
+        PoseJson {
+            rotation: p.rotation_rows(),
+            translation: [p.translation.x, p.translation.y, p.translation.z],
+        }
+    }
+}
+
+impl PoseJson {
+    /// Validate (finite numbers, a rotation within the spec's tolerance) and re-orthonormalise.
+    pub fn to_pose(&self, path: &Path, field: &str) -> Result<Pose> {
+        check_finite_rows(path, &format!("{field}.rotation"), &self.rotation)?;
+        check_finite(path, &format!("{field}.translation"), &self.translation)?;
+        let rotation = Pose::rotation_from_rows(&self.rotation, ROTATION_TOLERANCE).ok_or_else(|| {
+            Error::invalid(
+                path,
+                format!("{field}.rotation"),
+                format!(
+                    "is not a rotation matrix (RᵀR must be I and det(R) = +1 within {ROTATION_TOLERANCE})"
+                ),
+            )
+        })?;
+        let [x, y, z] = self.translation;
+        Ok(Pose::new(rotation, Vector3::new(x, y, z)))
+    }
+}
+
+/// init.json: per arch either a pose or bootstrap points.
+#[derive(Debug, Clone, Serialize, Deserialize)]
+pub struct InitJson {
+    pub upper: ArchInitJson,
+    pub lower: ArchInitJson,
+}
+
+#[derive(Debug, Clone, Serialize, Deserialize)]
+#[serde(untagged)]
+pub enum ArchInitJson {
+    Pose(PoseJson),
+    Points { points: Vec<InitPointJson> },
+}
+
+#[derive(Debug, Clone, Serialize, Deserialize)]
+pub struct InitPointJson {
+    pub vertex: i64,
+    pub pixels: BTreeMap<String, [f64; 2]>,
+}
+
+/// tracks.json, and gt/poses.json (which needs only `frame`, `upper`, `lower`).
+#[derive(Debug, Clone, Serialize, Deserialize)]
+pub struct TracksJson {
+    #[serde(default = "tracks_format")]
+    pub format: String,
+    pub frames: Vec<FrameRecordJson>,
+}
+
+fn tracks_format() -> String {
+    TRACKS_FORMAT.to_string()
+}
+
+#[derive(Debug, Clone, Serialize, Deserialize)]
+pub struct FrameRecordJson {
+    pub frame: u32,
+    pub upper: PoseJson,
+    pub lower: PoseJson,
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub jaw: Option<PoseJson>,
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub energy: Option<serde_json::Value>,
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub area_error: Option<serde_json::Value>,
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub status: Option<String>,
+}
+
+/// Read and parse a JSON file; a missing file is [`Error::Missing`] with `what`.
+pub fn read_json<T: DeserializeOwned>(path: &Path, what: &str) -> Result<T> {
+    let text = std::fs::read_to_string(path).map_err(|e| Error::read(path, what, e))?;
+    serde_json::from_str(&text).map_err(|source| Error::Json {
+        path: path.to_path_buf(),
+        source,
+    })
+}
+
+pub fn check_finite(path: &Path, field: &str, values: &[f64]) -> Result<()> {
+    match values.iter().position(|v| !v.is_finite()) {
+        None => Ok(()),
+        Some(i) => Err(Error::invalid(
+            path,
+            if values.len() > 1 {
+                format!("{field}[{i}]")
+            } else {
+                field.to_string()
+            },
+            format!("must be a finite number, found {}", values[i]),
+        )),
+    }
+}
+
+fn check_finite_rows(path: &Path, field: &str, rows: &[[f64; 3]; 3]) -> Result<()> {
+    for (i, row) in rows.iter().enumerate() {
+        check_finite(path, &format!("{field}[{i}]"), row)?;
+    }
+    Ok(())
+}

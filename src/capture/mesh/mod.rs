@@ -1,0 +1,189 @@
+//! Triangle meshes in millimetres, with the boundary of interest (BOI, the paper's green
+//! region) as a per-face flag. Vertex numbering is the file's: init.json refers to it.
+
+mod boi;
+mod obj;
+mod ply;
+mod simplify;
+mod stl;
+
+use std::path::Path;
+
+use crate::error::{Error, Result};
+
+pub use boi::{BoiMarking, mark_boi};
+pub use obj::write_obj;
+
+#[derive(Debug, Clone, PartialEq)]
+pub struct Mesh {
+    pub positions: Vec<[f32; 3]>,
+    pub triangles: Vec<[u32; 3]>,
+    /// One flag per triangle: part of the boundary of interest.
+    pub boi: Vec<bool>,
+}
+
+/// Where a mesh's boundary of interest comes from.
+#[derive(Debug, Clone, Copy)]
+pub enum BoiSource<'a> {
+    /// Faces of the OBJ group, object or material with this name.
+    Group(&'a str),
+    /// A JSON list of face indices.
+    FaceList(&'a Path),
+    /// No BOI (all faces are body).
+    None,
+}
+
+/// A mesh as read from a file, before the BOI is resolved: faces with the OBJ
+/// group/object/material names they were declared under.
+pub(crate) struct RawMesh {
+    pub positions: Vec<[f32; 3]>,
+    pub triangles: Vec<[u32; 3]>,
+    /// Per triangle, an index into `tags` for each of group, object and material (u32::MAX: none).
+    pub face_tags: Vec<[u32; 3]>,
+    pub tags: Vec<String>,
+}
+
+impl Mesh {
+    /// Load an OBJ, STL (binary or ASCII) or PLY file, chosen by extension, and validate it.
+    pub fn load(path: &Path, boi: BoiSource) -> Result<Mesh> {
+        let ext = path
+            .extension()
+            .and_then(|e| e.to_str())
+            .map(str::to_ascii_lowercase)
+            .unwrap_or_default();
+        let raw = match ext.as_str() {
+            "obj" => obj::read_obj(path)?,
+            "stl" => stl::read_stl(path)?,
+            "ply" => ply::read_ply(path)?,
+            _ => {
+                return Err(Error::invalid(
+                    path,
+                    "extension",
+                    format!("unsupported mesh format `.{ext}` (expected .obj, .stl or .ply)"),
+                ));
+            }
+        };
+        let boi_flags = match boi {
+            BoiSource::None => vec![false; raw.triangles.len()],
+            BoiSource::Group(name) => {
+                if ext != "obj" {
+                    return Err(Error::invalid(
+                        path,
+                        "boi.group",
+                        format!(
+                            "a .{ext} file has no groups; give the boundary of interest as face-index lists \
+                             (\"boi\": {{\"upper\": ..., \"lower\": ...}})"
+                        ),
+                    ));
+                }
+                let tag = raw.tags.iter().position(|t| t == name).map(|i| i as u32);
+                let flags: Vec<bool> = raw
+                    .face_tags
+                    .iter()
+                    .map(|ft| tag.is_some_and(|t| ft.contains(&t)))
+                    .collect();
+                if tag.is_none() {
+                    return Err(Error::invalid(
+                        path,
+                        "boi.group",
+                        format!("no group, object or material named `{name}` in the mesh"),
+                    ));
+                }
+                if !flags.iter().any(|&b| b) {
+                    return Err(Error::invalid(
+                        path,
+                        "boi.group",
+                        format!("the group `{name}` has no faces"),
+                    ));
+                }
+                flags
+            }
+            BoiSource::FaceList(list) => read_face_list(list, raw.triangles.len())?,
+        };
+        let mesh = Mesh {
+            positions: raw.positions,
+            triangles: raw.triangles,
+            boi: boi_flags,
+        };
+        mesh.validate(path)?;
+        Ok(mesh)
+    }
+
+    /// Check the invariants every consumer relies on.
+    pub fn validate(&self, path: &Path) -> Result<()> {
+        if self.triangles.is_empty() {
+            return Err(Error::invalid(path, "faces", "the mesh has no faces"));
+        }
+        if let Some(i) = self
+            .positions
+            .iter()
+            .position(|p| p.iter().any(|c| !c.is_finite()))
+        {
+            return Err(Error::invalid(
+                path,
+                format!("vertex {i}"),
+                format!("has a non-finite coordinate {:?}", self.positions[i]),
+            ));
+        }
+        let n = self.positions.len() as u32;
+        if let Some(i) = self.triangles.iter().position(|t| t.iter().any(|&v| v >= n)) {
+            return Err(Error::invalid(
+                path,
+                format!("face {i}"),
+                format!(
+                    "refers to vertex {} but the mesh has {n} vertices",
+                    self.triangles[i].iter().max().copied().unwrap_or(0)
+                ),
+            ));
+        }
+        if self.boi.len() != self.triangles.len() {
+            return Err(Error::invalid(path, "boi", "one flag per face expected"));
+        }
+        Ok(())
+    }
+
+    pub fn boi_face_count(&self) -> usize {
+        self.boi.iter().filter(|&&b| b).count()
+    }
+
+    /// Axis-aligned bounds (min, max) of the vertices used by faces.
+    pub fn bounds(&self) -> ([f32; 3], [f32; 3]) {
+        let mut lo = [f32::INFINITY; 3];
+        let mut hi = [f32::NEG_INFINITY; 3];
+        for t in &self.triangles {
+            for &v in t {
+                let p = self.positions[v as usize];
+                for k in 0..3 {
+                    lo[k] = lo[k].min(p[k]);
+                    hi[k] = hi[k].max(p[k]);
+                }
+            }
+        }
+        (lo, hi)
+    }
+
+    /// A copy with at most `max_triangles` triangles (meshoptimizer), keeping the file's
+    /// vertex numbering and the BOI: body and BOI are simplified apart with their borders locked.
+    pub fn simplified(&self, max_triangles: usize) -> Mesh {
+        simplify::simplify(self, max_triangles)
+    }
+}
+
+fn read_face_list(path: &Path, face_count: usize) -> Result<Vec<bool>> {
+    let faces: Vec<i64> = crate::capture::json::read_json(path, "boundary-of-interest face list")?;
+    if faces.is_empty() {
+        return Err(Error::invalid(path, "faces", "the boundary-of-interest face list is empty"));
+    }
+    let mut flags = vec![false; face_count];
+    for (i, &f) in faces.iter().enumerate() {
+        if f < 0 || f as usize >= face_count {
+            return Err(Error::invalid(
+                path,
+                format!("[{i}]"),
+                format!("face index {f} is out of range (the mesh has {face_count} faces)"),
+            ));
+        }
+        flags[f as usize] = true;
+    }
+    Ok(flags)
+}

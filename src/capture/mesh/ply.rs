@@ -1,0 +1,83 @@
+//! PLY, ASCII or binary (ply-rs-bw): `vertex` elements with x, y, z and `face` elements
+//! with a `vertex_indices` (or `vertex_index`) list; polygons are fan-triangulated.
+
+use std::path::Path;
+
+use ply_rs_bw::{parser::Parser, ply::Property};
+
+use super::RawMesh;
+use crate::error::{Error, Result};
+
+fn scalar(p: &Property) -> Option<f64> {
+    Some(match *p {
+        Property::Char(v) => v as f64,
+        Property::UChar(v) => v as f64,
+        Property::Short(v) => v as f64,
+        Property::UShort(v) => v as f64,
+        Property::Int(v) => v as f64,
+        Property::UInt(v) => v as f64,
+        Property::Float(v) => v as f64,
+        Property::Double(v) => v,
+        _ => return None,
+    })
+}
+
+fn index_list(p: &Property) -> Option<Vec<i64>> {
+    Some(match p {
+        Property::ListChar(v) => v.iter().map(|&x| x as i64).collect(),
+        Property::ListUChar(v) => v.iter().map(|&x| x as i64).collect(),
+        Property::ListShort(v) => v.iter().map(|&x| x as i64).collect(),
+        Property::ListUShort(v) => v.iter().map(|&x| x as i64).collect(),
+        Property::ListInt(v) => v.iter().map(|&x| x as i64).collect(),
+        Property::ListUInt(v) => v.iter().map(|&x| x as i64).collect(),
+        _ => return None,
+    })
+}
+
+pub(crate) fn read_ply(path: &Path) -> Result<RawMesh> {
+    let file = std::fs::File::open(path).map_err(|e| Error::read(path, "mesh", e))?;
+    let mut reader = std::io::BufReader::new(file);
+    let ply = Parser::<ply_rs_bw::ply::DefaultElement>::new()
+        .read_ply(&mut reader)
+        .map_err(|e| Error::invalid(path, "file", format!("not a readable PLY file: {e}")))?;
+    let vertices = ply
+        .payload
+        .get("vertex")
+        .ok_or_else(|| Error::invalid(path, "vertex", "the PLY file has no `vertex` element"))?;
+    let mut positions = Vec::with_capacity(vertices.len());
+    for (i, v) in vertices.iter().enumerate() {
+        let mut p = [0f32; 3];
+        for (k, name) in ["x", "y", "z"].iter().enumerate() {
+            p[k] = v.get(*name).and_then(scalar).ok_or_else(|| {
+                Error::invalid(path, format!("vertex {i}"), format!("has no numeric `{name}`"))
+            })? as f32;
+        }
+        positions.push(p);
+    }
+    let mut triangles = Vec::new();
+    for (i, f) in ply.payload.get("face").into_iter().flatten().enumerate() {
+        let list = f
+            .get("vertex_indices")
+            .or_else(|| f.get("vertex_index"))
+            .and_then(index_list)
+            .ok_or_else(|| {
+                Error::invalid(path, format!("face {i}"), "has no `vertex_indices` list")
+            })?;
+        if list.len() < 3 || list.iter().any(|&x| x < 0 || x > u32::MAX as i64) {
+            return Err(Error::invalid(
+                path,
+                format!("face {i}"),
+                format!("invalid vertex list {list:?}"),
+            ));
+        }
+        for k in 1..list.len() - 1 {
+            triangles.push([list[0] as u32, list[k] as u32, list[k + 1] as u32]);
+        }
+    }
+    Ok(RawMesh {
+        positions,
+        face_tags: vec![[u32::MAX; 3]; triangles.len()],
+        triangles,
+        tags: Vec::new(),
+    })
+}

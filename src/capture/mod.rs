@@ -1,0 +1,599 @@
+//! Reading and validating a capture (../shared/spec/capture-format.md): cameras, meshes with
+//! their boundary of interest, masks read frame by frame, init.json and ground truth.
+
+pub mod json;
+pub mod masks;
+pub mod mesh;
+mod write;
+
+use std::collections::BTreeSet;
+use std::path::{Path, PathBuf};
+use std::sync::OnceLock;
+
+use nalgebra::Vector2;
+
+use crate::error::{Error, Result};
+use crate::geometry::{Camera, Pose, fit_rigid, triangulate};
+use json::{ArchInitJson, BoiJson, CameraJson, CaptureJson, InitJson, TracksJson, check_finite, read_json};
+pub use masks::{LOWER_BIT, LabelMask, MaskMode, UPPER_BIT};
+pub use mesh::{BoiSource, Mesh};
+pub use write::{write_atomic, write_json_atomic};
+
+/// The two arches.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Hash)]
+pub enum Arch {
+    Upper,
+    Lower,
+}
+
+impl Arch {
+    pub const BOTH: [Arch; 2] = [Arch::Upper, Arch::Lower];
+    pub fn name(self) -> &'static str {
+        match self {
+            Arch::Upper => "upper",
+            Arch::Lower => "lower",
+        }
+    }
+    pub fn mask_bit(self) -> u8 {
+        match self {
+            Arch::Upper => UPPER_BIT,
+            Arch::Lower => LOWER_BIT,
+        }
+    }
+    pub fn other(self) -> Arch {
+        match self {
+            Arch::Upper => Arch::Lower,
+            Arch::Lower => Arch::Upper,
+        }
+    }
+}
+
+/// Both arches' poses in the world (`world_from_upper`, `world_from_lower`).
+#[derive(Debug, Clone, Copy, PartialEq, Default)]
+pub struct ArchPoses {
+    pub upper: Pose,
+    pub lower: Pose,
+}
+
+impl ArchPoses {
+    pub fn get(&self, arch: Arch) -> &Pose {
+        match arch {
+            Arch::Upper => &self.upper,
+            Arch::Lower => &self.lower,
+        }
+    }
+    pub fn with(mut self, arch: Arch, pose: Pose) -> Self {
+        match arch {
+            Arch::Upper => self.upper = pose,
+            Arch::Lower => self.lower = pose,
+        }
+        self
+    }
+    /// The jaw pose, `upper_from_lower` (Eq. 1-3).
+    pub fn jaw(&self) -> Pose {
+        crate::geometry::jaw_pose(&self.upper, &self.lower)
+    }
+}
+
+/// A camera of the capture with what was found of its masks.
+#[derive(Debug)]
+pub struct CaptureCamera {
+    /// As calibrated (full resolution, distortion included).
+    pub calibrated: Camera,
+    /// Mask size (all masks of a camera share it); `None` when the camera has no masks.
+    pub mask_size: Option<(u32, u32)>,
+    /// Frames with a mask file.
+    pub frames_present: BTreeSet<u32>,
+    undistort: OnceLock<Vec<u32>>,
+}
+
+impl CaptureCamera {
+    /// The pinhole camera the masks are seen through after undistortion: calibrated
+    /// intrinsics scaled to the mask size, no distortion.
+    pub fn mask_camera(&self) -> Option<Camera> {
+        let (w, h) = self.mask_size?;
+        Some(self.calibrated.scaled_to(w, h).undistorted())
+    }
+}
+
+/// The bootstrap of one arch: mesh vertices seen at pixels in two or more cameras.
+#[derive(Debug, Clone)]
+pub struct InitPoint {
+    pub vertex: u32,
+    /// (camera index, pixel in the calibrated image)
+    pub pixels: Vec<(usize, Vector2<f64>)>,
+}
+
+#[derive(Debug, Clone)]
+pub enum ArchInit {
+    Pose(Pose),
+    Points(Vec<InitPoint>),
+}
+
+#[derive(Debug, Clone)]
+pub struct Init {
+    pub upper: ArchInit,
+    pub lower: ArchInit,
+}
+
+/// Ground-truth (or tracked) poses of one frame.
+#[derive(Debug, Clone, Copy)]
+pub struct FramePoses {
+    pub frame: u32,
+    pub poses: ArchPoses,
+}
+
+/// A validated capture. Masks are not held: read them frame by frame with [`Capture::load_masks`].
+#[derive(Debug)]
+pub struct Capture {
+    pub dir: PathBuf,
+    pub cameras: Vec<CaptureCamera>,
+    pub first_frame: u32,
+    pub frame_count: u32,
+    pub upper: Mesh,
+    pub lower: Mesh,
+    pub mandible: Option<Mesh>,
+    pub mask_dir: PathBuf,
+    pub mask_mode: MaskMode,
+    pub init: Option<Init>,
+    pub gt: Option<Vec<FramePoses>>,
+}
+
+/// Masks of one frame, one entry per camera (`None`: no mask file for that camera).
+#[derive(Debug, Clone)]
+pub struct FrameMasks {
+    pub frame: u32,
+    pub masks: Vec<Option<LabelMask>>,
+}
+
+/// Options for opening a capture.
+#[derive(Debug, Clone, Copy, Default)]
+pub struct OpenOptions {
+    /// Simplify each arch to at most this many triangles at load.
+    pub max_triangles: Option<usize>,
+}
+
+impl Capture {
+    pub fn open(dir: &Path) -> Result<Capture> {
+        Self::open_with(dir, OpenOptions::default())
+    }
+
+    pub fn open_with(dir: &Path, options: OpenOptions) -> Result<Capture> {
+        let capture_path = dir.join("capture.json");
+        let cj: CaptureJson = read_json(&capture_path, "capture.json")?;
+        if cj.format != json::CAPTURE_FORMAT {
+            return Err(Error::invalid(
+                &capture_path,
+                "format",
+                format!("expected \"{}\", found \"{}\"", json::CAPTURE_FORMAT, cj.format),
+            ));
+        }
+        if cj.cameras.is_empty() {
+            return Err(Error::invalid(&capture_path, "cameras", "no cameras are named"));
+        }
+        for (i, name) in cj.cameras.iter().enumerate() {
+            if name.is_empty() || name.contains(['/', '\\']) || name == "." || name == ".." {
+                return Err(Error::invalid(
+                    &capture_path,
+                    format!("cameras[{i}]"),
+                    format!("`{name}` is not a valid camera name"),
+                ));
+            }
+            if cj.cameras[..i].contains(name) {
+                return Err(Error::invalid(
+                    &capture_path,
+                    format!("cameras[{i}]"),
+                    format!("camera `{name}` is named twice"),
+                ));
+            }
+        }
+        if cj.frames.count == 0 {
+            return Err(Error::invalid(&capture_path, "frames.count", "must be at least 1"));
+        }
+        let mask_mode = match cj.masks.mode.as_str() {
+            "per-arch" => {
+                let label = |v: Option<i64>, default: u8, field: &str| -> Result<u8> {
+                    match v {
+                        None => Ok(default),
+                        Some(x) if (0..=255).contains(&x) => Ok(x as u8),
+                        Some(x) => Err(Error::invalid(
+                            &capture_path,
+                            field,
+                            format!("a mask label must be 0..255, found {x}"),
+                        )),
+                    }
+                };
+                let upper = label(cj.masks.upper, 1, "masks.upper")?;
+                let lower = label(cj.masks.lower, 2, "masks.lower")?;
+                if upper == lower {
+                    return Err(Error::invalid(
+                        &capture_path,
+                        "masks.lower",
+                        format!("the upper and lower labels are both {upper}"),
+                    ));
+                }
+                MaskMode::PerArch { upper, lower }
+            }
+            "combined" => MaskMode::Combined,
+            other => {
+                return Err(Error::invalid(
+                    &capture_path,
+                    "masks.mode",
+                    format!("expected \"per-arch\" or \"combined\", found \"{other}\""),
+                ));
+            }
+        };
+
+        let mut cameras = Vec::with_capacity(cj.cameras.len());
+        let mask_dir = dir.join(&cj.masks.dir);
+        for name in &cj.cameras {
+            let calibrated = read_camera(&dir.join("cameras").join(format!("{name}.json")), name)?;
+            let (mask_size, frames_present) = scan_masks(&mask_dir.join(name))?;
+            cameras.push(CaptureCamera {
+                calibrated,
+                mask_size,
+                frames_present,
+                undistort: OnceLock::new(),
+            });
+        }
+        let first = cj.frames.first;
+        let last = first as u64 + cj.frames.count as u64 - 1;
+        let last_present = cameras.iter().filter_map(|c| c.frames_present.last()).max();
+        match last_present {
+            None => {
+                return Err(Error::Missing {
+                    path: mask_dir,
+                    what: "mask files (<camera>/<frame:06>.png)".into(),
+                });
+            }
+            Some(&lp) if last > lp as u64 => {
+                return Err(Error::invalid(
+                    &capture_path,
+                    "frames",
+                    format!(
+                        "frames {first}..={last} go beyond the last mask file present (frame {lp})"
+                    ),
+                ));
+            }
+            _ => {}
+        }
+
+        let (upper_boi, lower_boi) = match &cj.boi {
+            BoiJson::Group { group } => (BoiRef::Group(group.clone()), BoiRef::Group(group.clone())),
+            BoiJson::FaceLists { upper, lower } => {
+                (BoiRef::List(dir.join(upper)), BoiRef::List(dir.join(lower)))
+            }
+        };
+        let load_mesh = |rel: &str, boi: &BoiRef| -> Result<Mesh> {
+            let path = dir.join(rel);
+            let source = match boi {
+                BoiRef::Group(g) => BoiSource::Group(g),
+                BoiRef::List(p) => BoiSource::FaceList(p),
+            };
+            let mesh = Mesh::load(&path, source)?;
+            Ok(match options.max_triangles {
+                Some(n) => mesh.simplified(n),
+                None => mesh,
+            })
+        };
+        let upper = load_mesh(&cj.meshes.upper, &upper_boi)?;
+        let lower = load_mesh(&cj.meshes.lower, &lower_boi)?;
+        let mandible = cj
+            .meshes
+            .mandible
+            .as_ref()
+            .map(|rel| Mesh::load(&dir.join(rel), BoiSource::None))
+            .transpose()?;
+
+        let mut capture = Capture {
+            dir: dir.to_path_buf(),
+            cameras,
+            first_frame: first,
+            frame_count: cj.frames.count,
+            upper,
+            lower,
+            mandible,
+            mask_dir,
+            mask_mode,
+            init: None,
+            gt: None,
+        };
+        let init_path = dir.join("init.json");
+        if init_path.exists() {
+            capture.init = Some(capture.read_init(&init_path)?);
+        }
+        let gt_path = dir.join("gt").join("poses.json");
+        if gt_path.exists() {
+            capture.gt = Some(read_poses(&gt_path)?);
+        }
+        Ok(capture)
+    }
+
+    pub fn camera_names(&self) -> Vec<&str> {
+        self.cameras.iter().map(|c| c.calibrated.name.as_str()).collect()
+    }
+
+    pub fn frames(&self) -> std::ops::Range<u32> {
+        self.first_frame..self.first_frame + self.frame_count
+    }
+
+    pub fn mesh(&self, arch: Arch) -> &Mesh {
+        match arch {
+            Arch::Upper => &self.upper,
+            Arch::Lower => &self.lower,
+        }
+    }
+
+    pub fn mask_path(&self, camera: usize, frame: u32) -> PathBuf {
+        self.mask_dir
+            .join(&self.cameras[camera].calibrated.name)
+            .join(format!("{frame:06}.png"))
+    }
+
+    /// Decode the masks of one frame (undistorted when the camera has distortion).
+    pub fn load_masks(&self, frame: u32) -> Result<FrameMasks> {
+        let mut masks = Vec::with_capacity(self.cameras.len());
+        for (i, cam) in self.cameras.iter().enumerate() {
+            if !cam.frames_present.contains(&frame) {
+                masks.push(None);
+                continue;
+            }
+            let path = self.mask_path(i, frame);
+            let mask = masks::decode_mask(&path, self.mask_mode)?;
+            let expected = cam.mask_size.expect("a camera with mask files has a mask size");
+            if (mask.width, mask.height) != expected {
+                return Err(Error::invalid(
+                    &path,
+                    "size",
+                    format!(
+                        "{}x{} differs from the camera's other masks ({}x{})",
+                        mask.width, mask.height, expected.0, expected.1
+                    ),
+                ));
+            }
+            masks.push(Some(if cam.calibrated.has_distortion() {
+                let map = cam.undistort.get_or_init(|| {
+                    masks::undistortion_map(&cam.calibrated.scaled_to(expected.0, expected.1))
+                });
+                masks::apply_map(&mask, map)
+            } else {
+                mask
+            }));
+        }
+        Ok(FrameMasks { frame, masks })
+    }
+
+    /// First-frame poses from init.json: given, or bootstrapped (triangulate the points,
+    /// then fit the mesh vertices to them rigidly).
+    pub fn initial_poses(&self) -> Result<ArchPoses> {
+        let init_path = self.dir.join("init.json");
+        let init = self.init.as_ref().ok_or_else(|| Error::Missing {
+            path: init_path.clone(),
+            what: "init.json (the first frame's poses, or bootstrap points per arch)".into(),
+        })?;
+        let resolve = |arch: Arch, ai: &ArchInit| -> Result<Pose> {
+            match ai {
+                ArchInit::Pose(p) => Ok(*p),
+                ArchInit::Points(points) => {
+                    let mesh = self.mesh(arch);
+                    let mut model = Vec::new();
+                    let mut world = Vec::new();
+                    for (k, p) in points.iter().enumerate() {
+                        let views: Vec<_> = p
+                            .pixels
+                            .iter()
+                            .map(|(c, px)| (&self.cameras[*c].calibrated, *px))
+                            .collect();
+                        let x = triangulate(&views).map_err(|e| {
+                            Error::invalid(&init_path, format!("{}.points[{k}]", arch.name()), e.to_string())
+                        })?;
+                        let v = mesh.positions[p.vertex as usize];
+                        model.push(nalgebra::Vector3::new(v[0] as f64, v[1] as f64, v[2] as f64));
+                        world.push(x);
+                    }
+                    fit_rigid(&model, &world).map_err(|e| {
+                        Error::invalid(&init_path, format!("{}.points", arch.name()), e.to_string())
+                    })
+                }
+            }
+        };
+        Ok(ArchPoses {
+            upper: resolve(Arch::Upper, &init.upper)?,
+            lower: resolve(Arch::Lower, &init.lower)?,
+        })
+    }
+
+    /// Ground-truth poses of a frame, if the capture has them.
+    pub fn gt_poses(&self, frame: u32) -> Option<ArchPoses> {
+        self.gt
+            .as_ref()?
+            .iter()
+            .find(|f| f.frame == frame)
+            .map(|f| f.poses)
+    }
+
+    fn read_init(&self, path: &Path) -> Result<Init> {
+        let ij: InitJson = read_json(path, "init.json")?;
+        let names = self.camera_names();
+        let arch_init = |arch: Arch, a: &ArchInitJson| -> Result<ArchInit> {
+            let field = arch.name();
+            match a {
+                ArchInitJson::Pose(p) => Ok(ArchInit::Pose(p.to_pose(path, field)?)),
+                ArchInitJson::Points { points } => {
+                    if points.len() < 3 {
+                        return Err(Error::invalid(
+                            path,
+                            format!("{field}.points"),
+                            format!("a rigid bootstrap needs at least three points, found {}", points.len()),
+                        ));
+                    }
+                    let nv = self.mesh(arch).positions.len();
+                    let mut out = Vec::with_capacity(points.len());
+                    for (k, p) in points.iter().enumerate() {
+                        let f = format!("{field}.points[{k}]");
+                        if p.vertex < 0 || p.vertex as usize >= nv {
+                            return Err(Error::invalid(
+                                path,
+                                format!("{f}.vertex"),
+                                format!("vertex {} is out of range (the {field} mesh has {nv} vertices)", p.vertex),
+                            ));
+                        }
+                        if p.pixels.len() < 2 {
+                            return Err(Error::invalid(
+                                path,
+                                format!("{f}.pixels"),
+                                "a point needs its pixel in at least two cameras",
+                            ));
+                        }
+                        let mut pixels = Vec::new();
+                        for (cam, px) in &p.pixels {
+                            let c = names.iter().position(|n| n == cam).ok_or_else(|| {
+                                Error::invalid(
+                                    path,
+                                    format!("{f}.pixels.{cam}"),
+                                    format!("no camera named `{cam}` in capture.json"),
+                                )
+                            })?;
+                            check_finite(path, &format!("{f}.pixels.{cam}"), px)?;
+                            pixels.push((c, Vector2::new(px[0], px[1])));
+                        }
+                        out.push(InitPoint {
+                            vertex: p.vertex as u32,
+                            pixels,
+                        });
+                    }
+                    Ok(ArchInit::Points(out))
+                }
+            }
+        };
+        Ok(Init {
+            upper: arch_init(Arch::Upper, &ij.upper)?,
+            lower: arch_init(Arch::Lower, &ij.lower)?,
+        })
+    }
+}
+
+enum BoiRef {
+    Group(String),
+    List(PathBuf),
+}
+
+/// Read a cameras/<name>.json file and validate every field.
+pub fn read_camera(path: &Path, name: &str) -> Result<Camera> {
+    let cj: CameraJson = read_json(path, &format!("camera file for `{name}`"))?;
+    if cj.width <= 0 || cj.height <= 0 || cj.width > 1 << 16 || cj.height > 1 << 16 {
+        return Err(Error::invalid(
+            path,
+            "width/height",
+            format!("image size {}x{} is not valid", cj.width, cj.height),
+        ));
+    }
+    for (field, v) in [("fx", cj.fx), ("fy", cj.fy), ("cx", cj.cx), ("cy", cj.cy)] {
+        check_finite(path, field, &[v])?;
+    }
+    for (field, v) in [("fx", cj.fx), ("fy", cj.fy)] {
+        if v <= 0.0 {
+            return Err(Error::invalid(
+                path,
+                field,
+                format!("the focal length must be positive, found {v}"),
+            ));
+        }
+    }
+    let mut distortion = [0.0; 5];
+    if let Some(d) = &cj.distortion {
+        check_finite(path, "distortion", d)?;
+        if !(d.len() == 4 || d.len() == 5) {
+            return Err(Error::invalid(
+                path,
+                "distortion",
+                format!("expected [k1, k2, p1, p2] or [k1, k2, p1, p2, k3], found {} values", d.len()),
+            ));
+        }
+        distortion[..d.len()].copy_from_slice(d);
+    }
+    let pose = json::PoseJson {
+        rotation: cj.rotation,
+        translation: cj.translation,
+    }
+    .to_pose(path, "extrinsics")
+    .map_err(|e| match e {
+        // The camera file keeps rotation/translation at the top level.
+        Error::Invalid { path, field, problem } => Error::Invalid {
+            path,
+            field: field.trim_start_matches("extrinsics.").to_string(),
+            problem,
+        },
+        other => other,
+    })?;
+    Ok(Camera {
+        name: name.to_string(),
+        width: cj.width as u32,
+        height: cj.height as u32,
+        fx: cj.fx,
+        fy: cj.fy,
+        cx: cj.cx,
+        cy: cj.cy,
+        distortion,
+        camera_from_world: pose,
+    })
+}
+
+/// List a camera's mask files and check that they share one size (headers only).
+fn scan_masks(cam_dir: &Path) -> Result<(Option<(u32, u32)>, BTreeSet<u32>)> {
+    let mut frames = BTreeSet::new();
+    let entries = match std::fs::read_dir(cam_dir) {
+        Ok(e) => e,
+        Err(e) if e.kind() == std::io::ErrorKind::NotFound => return Ok((None, frames)),
+        Err(e) => return Err(Error::read(cam_dir, "mask folder", e)),
+    };
+    for entry in entries {
+        let entry = entry.map_err(|e| Error::read(cam_dir, "mask folder", e))?;
+        let name = entry.file_name();
+        let Some(name) = name.to_str() else { continue };
+        if let Some(stem) = name.strip_suffix(".png")
+            && stem.len() == 6
+            && stem.bytes().all(|b| b.is_ascii_digit())
+        {
+            frames.insert(stem.parse::<u32>().expect("six digits"));
+        }
+    }
+    let mut size: Option<((u32, u32), u32)> = None;
+    for &f in &frames {
+        let path = cam_dir.join(format!("{f:06}.png"));
+        let dims = masks::mask_dimensions(&path)?;
+        match size {
+            None => size = Some((dims, f)),
+            Some((s, f0)) if s != dims => {
+                return Err(Error::invalid(
+                    &path,
+                    "size",
+                    format!(
+                        "{}x{} differs from {:06}.png ({}x{}): all masks of a camera must have one size",
+                        dims.0, dims.1, f0, s.0, s.1
+                    ),
+                ));
+            }
+            _ => {}
+        }
+    }
+    Ok((size.map(|(s, _)| s), frames))
+}
+
+/// Read gt/poses.json or a tracks.json (frame, upper, lower are required).
+pub fn read_poses(path: &Path) -> Result<Vec<FramePoses>> {
+    let tj: TracksJson = read_json(path, "poses file")?;
+    tj.frames
+        .iter()
+        .enumerate()
+        .map(|(i, f)| {
+            Ok(FramePoses {
+                frame: f.frame,
+                poses: ArchPoses {
+                    upper: f.upper.to_pose(path, &format!("frames[{i}].upper"))?,
+                    lower: f.lower.to_pose(path, &format!("frames[{i}].lower"))?,
+                },
+            })
+        })
+        .collect()
+}

@@ -1,0 +1,167 @@
+//! The OpenCV pinhole camera: x right, y down, z forward; pixel (u, v) = (column, row) with
+//! the centre of the top-left pixel at (0, 0). Distortion is OpenCV's (k1, k2, p1, p2, k3).
+
+use nalgebra::{Matrix3x4, Vector2, Vector3};
+
+use super::Pose;
+
+#[derive(Clone, Debug, PartialEq)]
+pub struct Camera {
+    pub name: String,
+    pub width: u32,
+    pub height: u32,
+    pub fx: f64,
+    pub fy: f64,
+    pub cx: f64,
+    pub cy: f64,
+    /// OpenCV order (k1, k2, p1, p2, k3).
+    pub distortion: [f64; 5],
+    pub camera_from_world: Pose,
+}
+
+impl Camera {
+    pub fn has_distortion(&self) -> bool {
+        self.distortion.iter().any(|&k| k != 0.0)
+    }
+
+    /// The same camera for an image of `width x height` (e.g. half-resolution masks):
+    /// `f' = f·s`, `c' = (c + 0.5)·s − 0.5`, per axis.
+    pub fn scaled_to(&self, width: u32, height: u32) -> Camera {
+        let sx = width as f64 / self.width as f64;
+        let sy = height as f64 / self.height as f64;
+        Camera {
+            width,
+            height,
+            fx: self.fx * sx,
+            fy: self.fy * sy,
+            cx: (self.cx + 0.5) * sx - 0.5,
+            cy: (self.cy + 0.5) * sy - 0.5,
+            ..self.clone()
+        }
+    }
+
+    /// The camera with its distortion removed (what an undistorted mask is seen through).
+    pub fn undistorted(&self) -> Camera {
+        Camera {
+            distortion: [0.0; 5],
+            ..self.clone()
+        }
+    }
+
+    /// World point to camera coordinates.
+    pub fn to_camera(&self, p_world: &Vector3<f64>) -> Vector3<f64> {
+        self.camera_from_world.transform_point(p_world)
+    }
+
+    /// Apply the distortion model to normalised image coordinates.
+    pub fn distort(&self, n: Vector2<f64>) -> Vector2<f64> {
+        let [k1, k2, p1, p2, k3] = self.distortion;
+        let (x, y) = (n.x, n.y);
+        let r2 = x * x + y * y;
+        let radial = 1.0 + r2 * (k1 + r2 * (k2 + r2 * k3));
+        Vector2::new(
+            x * radial + 2.0 * p1 * x * y + p2 * (r2 + 2.0 * x * x),
+            y * radial + p1 * (r2 + 2.0 * y * y) + 2.0 * p2 * x * y,
+        )
+    }
+
+    /// Invert [`Camera::distort`] by fixed-point iteration (as OpenCV's `undistortPoints`).
+    pub fn undistort_normalised(&self, d: Vector2<f64>) -> Vector2<f64> {
+        if !self.has_distortion() {
+            return d;
+        }
+        let mut n = d;
+        for _ in 0..50 {
+            let err = self.distort(n) - d;
+            n -= err;
+            if err.norm_squared() < 1e-24 {
+                break;
+            }
+        }
+        n
+    }
+
+    /// Pixel to normalised coordinates with distortion removed.
+    pub fn pixel_to_normalised(&self, px: Vector2<f64>) -> Vector2<f64> {
+        let d = Vector2::new((px.x - self.cx) / self.fx, (px.y - self.cy) / self.fy);
+        self.undistort_normalised(d)
+    }
+
+    pub fn normalised_to_pixel(&self, n: Vector2<f64>) -> Vector2<f64> {
+        let d = self.distort(n);
+        Vector2::new(self.fx * d.x + self.cx, self.fy * d.y + self.cy)
+    }
+
+    /// Project a world point; `None` when it is not in front of the camera.
+    pub fn project(&self, p_world: &Vector3<f64>) -> Option<Vector2<f64>> {
+        let pc = self.to_camera(p_world);
+        (pc.z > 1e-9).then(|| self.normalised_to_pixel(Vector2::new(pc.x / pc.z, pc.y / pc.z)))
+    }
+
+    /// `[R | t]`, the normalised-coordinates projection matrix used by triangulation.
+    pub fn extrinsic_matrix(&self) -> Matrix3x4<f64> {
+        let mut m = Matrix3x4::zeros();
+        m.fixed_view_mut::<3, 3>(0, 0)
+            .copy_from(self.camera_from_world.rotation.matrix());
+        m.fixed_view_mut::<3, 1>(0, 3)
+            .copy_from(&self.camera_from_world.translation);
+        m
+    }
+
+    /// Camera centre in world coordinates.
+    pub fn centre_world(&self) -> Vector3<f64> {
+        self.camera_from_world.inverse().translation
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    pub(crate) fn test_camera() -> Camera {
+        Camera {
+            name: "cam".into(),
+            width: 1920,
+            height: 1080,
+            fx: 1400.0,
+            fy: 1390.0,
+            cx: 959.5,
+            cy: 539.5,
+            distortion: [-0.12, 0.05, 0.001, -0.0007, -0.01],
+            camera_from_world: Pose::from_euler_tuple(&[0.05, -0.3, 0.02, 10.0, -3.0, 200.0]),
+        }
+    }
+
+    #[test]
+    fn scaling_keeps_pixel_centres_consistent() {
+        let cam = test_camera().undistorted();
+        let half = cam.scaled_to(960, 540);
+        let p = Vector3::new(3.0, -2.0, 5.0);
+        let full = cam.project(&p).unwrap();
+        let h = half.project(&p).unwrap();
+        // Centre of full-res pixel u maps to (u + 0.5)/2 − 0.5 in the half-res image.
+        assert!((h.x - ((full.x + 0.5) * 0.5 - 0.5)).abs() < 1e-9);
+        assert!((h.y - ((full.y + 0.5) * 0.5 - 0.5)).abs() < 1e-9);
+    }
+
+    #[test]
+    fn undistort_inverts_distort() {
+        let cam = test_camera();
+        for &(x, y) in &[(0.0, 0.0), (0.3, -0.2), (-0.5, 0.4), (0.6, 0.3)] {
+            let n = Vector2::new(x, y);
+            let px = cam.normalised_to_pixel(n);
+            let back = cam.pixel_to_normalised(px);
+            assert!((back - n).norm() < 1e-10, "{n:?} -> {back:?}");
+        }
+    }
+
+    #[test]
+    fn principal_point_projects_from_optical_axis() {
+        let cam = test_camera();
+        let on_axis = cam.camera_from_world.inverse().transform_point(&Vector3::new(0.0, 0.0, 50.0));
+        let px = cam.project(&on_axis).unwrap();
+        assert!((px - Vector2::new(cam.cx, cam.cy)).norm() < 1e-9);
+        let behind = cam.camera_from_world.inverse().transform_point(&Vector3::new(0.0, 0.0, -5.0));
+        assert!(cam.project(&behind).is_none());
+    }
+}

@@ -1,0 +1,13 @@
+//! jawtrack: track the teeth in multi-camera video and learn how the jaw moves
+//! (Yang et al., *Building Anatomically Realistic Jaw Kinematics Model from Data*, 2019).
+//!
+//! Data flows one way: [`capture`] → [`energy`] → track → rig. [`geometry`] is shared;
+//! [`synth`] writes synthetic captures with ground truth.
+
+pub mod capture;
+pub mod energy;
+pub mod error;
+pub mod geometry;
+pub mod synth;
+
+pub use error::{Error, Result};
