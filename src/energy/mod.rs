@@ -1,1 +1,118 @@
+//! The paper's energy E = E_SP + λ·E_BND (Eq. 7-9), per arch and candidate pose, summed over
+//! cameras. Every backend implements [`EnergyEngine`]: a batch of candidate poses in, one
+//! [`Energy`] (six counts per camera) out for each.
 
+pub mod cpu;
+pub mod raster;
+
+use crate::capture::{Arch, ArchPoses, Capture, FrameMasks, MaskMode, Mesh};
+use crate::error::Result;
+use crate::geometry::Camera;
+
+pub use cpu::CpuEnergy;
+
+/// The paper's weight of the boundary term.
+pub const DEFAULT_LAMBDA: f64 = 0.4;
+
+/// One camera's six counts: mask (off, on) x class (none, body, BOI), at `mask * 3 + class`.
+#[derive(Debug, Clone, Copy, Default, PartialEq, Eq)]
+pub struct Counts {
+    pub bins: [u64; 6],
+}
+
+impl Counts {
+    pub fn bin(&self, on_mask: bool, class: u8) -> u64 {
+        self.bins[on_mask as usize * 3 + class as usize]
+    }
+    /// The paper's #Pixel_White: mask pixels the model leaves uncovered.
+    pub fn uncovered(&self) -> u64 {
+        self.bins[3]
+    }
+    /// The paper's #Pixel_DGreen: visible BOI pixels outside the mask.
+    pub fn boi_outside(&self) -> u64 {
+        self.bins[2]
+    }
+    pub fn mask_pixels(&self) -> u64 {
+        self.bins[3] + self.bins[4] + self.bins[5]
+    }
+    pub fn total(&self, lambda: f64) -> f64 {
+        self.uncovered() as f64 + lambda * self.boi_outside() as f64
+    }
+}
+
+/// The energy of one candidate: counts per camera (zero for a camera without a mask).
+#[derive(Debug, Clone, Default, PartialEq, Eq)]
+pub struct Energy {
+    pub cameras: Vec<Counts>,
+}
+
+impl Energy {
+    pub fn uncovered(&self) -> u64 {
+        self.cameras.iter().map(Counts::uncovered).sum()
+    }
+    pub fn boi_outside(&self) -> u64 {
+        self.cameras.iter().map(Counts::boi_outside).sum()
+    }
+    pub fn mask_pixels(&self) -> u64 {
+        self.cameras.iter().map(Counts::mask_pixels).sum()
+    }
+    /// E = uncovered + λ·boi_outside.
+    pub fn total(&self, lambda: f64) -> f64 {
+        self.uncovered() as f64 + lambda * self.boi_outside() as f64
+    }
+    /// The paper's accuracy proxy: uncovered / mask pixels (0 without mask pixels).
+    pub fn area_error(&self) -> f64 {
+        match self.mask_pixels() {
+            0 => 0.0,
+            m => self.uncovered() as f64 / m as f64,
+        }
+    }
+}
+
+/// What every backend renders: the cameras the masks are seen through (mask resolution,
+/// undistorted; `None` for a camera without masks), both arch meshes and the mask mode.
+#[derive(Debug, Clone)]
+pub struct Scene {
+    pub cameras: Vec<Option<Camera>>,
+    pub upper: Mesh,
+    pub lower: Mesh,
+    pub mode: MaskMode,
+}
+
+impl Scene {
+    pub fn from_capture(capture: &Capture) -> Scene {
+        Scene {
+            cameras: capture.cameras.iter().map(|c| c.mask_camera()).collect(),
+            upper: capture.upper.clone(),
+            lower: capture.lower.clone(),
+            mode: capture.mask_mode,
+        }
+    }
+
+    pub fn mesh(&self, arch: Arch) -> &Mesh {
+        match arch {
+            Arch::Upper => &self.upper,
+            Arch::Lower => &self.lower,
+        }
+    }
+
+    /// The class the other arch is drawn with: in combined mode it covers the teeth mask
+    /// (body); with per-arch masks it only hides what is behind it (depth, class none), so
+    /// that only *visible* BOI pixels count.
+    pub fn other_arch_class(&self) -> u8 {
+        match self.mode {
+            MaskMode::Combined => raster::CLASS_BODY,
+            MaskMode::PerArch { .. } => raster::CLASS_NONE,
+        }
+    }
+}
+
+/// An energy backend. `set_frame` uploads a frame's masks once; `evaluate` scores a batch of
+/// candidates for one arch (each candidate carries both arches' poses: the other arch is
+/// drawn at its pose as described in [`Scene::other_arch_class`]).
+pub trait EnergyEngine {
+    /// The backend and adapter, for logs.
+    fn name(&self) -> String;
+    fn set_frame(&mut self, masks: &FrameMasks) -> Result<()>;
+    fn evaluate(&self, arch: Arch, candidates: &[ArchPoses]) -> Result<Vec<Energy>>;
+}

@@ -1,0 +1,410 @@
+//! The CPU reference rasteriser, written to the Vulkan rasterisation rules so the GPU engine
+//! can match it pixel for pixel: vertices snapped to 1/256 pixel (8 subpixel bits), samples at
+//! pixel centres, integer edge functions with the top-left fill rule, triangles clipped at a
+//! near plane, no face culling (scans are open shells), and a depth test on 1/z interpolated
+//! linearly in screen space (what a perspective depth buffer orders by).
+//!
+//! Pixel convention: OpenCV's, the centre of pixel (x, y) is at (x, y); framebuffer
+//! coordinates are those plus 0.5.
+
+use crate::capture::Mesh;
+use crate::geometry::{Camera, Pose};
+
+pub const SUBPIXEL_BITS: u32 = 8;
+const SUBPIXEL: f64 = (1 << SUBPIXEL_BITS) as f64;
+const HALF_PIXEL: i64 = 1 << (SUBPIXEL_BITS - 1);
+/// Geometry closer to the camera than this (mm) is clipped away.
+pub const NEAR_MM: f64 = 1.0;
+/// Vertices projecting further than this from the image (in pixels) are outside the guard
+/// band; triangles touching them are dropped (never the case for teeth in view).
+const GUARD_PIXELS: f64 = 1.0e6;
+
+/// Per-pixel class of a rendered model.
+pub const CLASS_NONE: u8 = 0;
+pub const CLASS_BODY: u8 = 1;
+pub const CLASS_BOI: u8 = 2;
+
+/// A pixel rectangle `[x0, x0 + width) x [y0, y0 + height)` of an image.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub struct Rect {
+    pub x0: u32,
+    pub y0: u32,
+    pub width: u32,
+    pub height: u32,
+}
+
+impl Rect {
+    pub fn full(width: u32, height: u32) -> Rect {
+        Rect {
+            x0: 0,
+            y0: 0,
+            width,
+            height,
+        }
+    }
+    pub fn area(&self) -> u64 {
+        self.width as u64 * self.height as u64
+    }
+    pub fn union(&self, o: &Rect) -> Rect {
+        if self.area() == 0 {
+            return *o;
+        }
+        if o.area() == 0 {
+            return *self;
+        }
+        let x0 = self.x0.min(o.x0);
+        let y0 = self.y0.min(o.y0);
+        let x1 = (self.x0 + self.width).max(o.x0 + o.width);
+        let y1 = (self.y0 + self.height).max(o.y0 + o.height);
+        Rect {
+            x0,
+            y0,
+            width: x1 - x0,
+            height: y1 - y0,
+        }
+    }
+}
+
+/// A render target covering `rect` of the image: depth (1/z, 0 = empty) and class per pixel.
+#[derive(Debug, Clone, Default)]
+pub struct Target {
+    pub rect: Option<Rect>,
+    pub inv_depth: Vec<f32>,
+    pub class: Vec<u8>,
+}
+
+impl Target {
+    /// Reset to an empty target over `rect`, reusing the allocation.
+    pub fn reset(&mut self, rect: Rect) {
+        let n = rect.area() as usize;
+        self.rect = Some(rect);
+        self.inv_depth.clear();
+        self.inv_depth.resize(n, 0.0);
+        self.class.clear();
+        self.class.resize(n, CLASS_NONE);
+    }
+}
+
+/// Vertices of a mesh in camera coordinates (f32, as a GPU would hold them).
+pub fn to_camera_space(mesh: &Mesh, camera_from_model: &Pose, out: &mut Vec<[f32; 3]>) {
+    let r = camera_from_model.rotation.matrix();
+    let t = camera_from_model.translation;
+    let m: [[f32; 4]; 3] =
+        std::array::from_fn(|i| [r[(i, 0)] as f32, r[(i, 1)] as f32, r[(i, 2)] as f32, t[i] as f32]);
+    out.clear();
+    out.extend(mesh.positions.iter().map(|p| {
+        std::array::from_fn(|i| m[i][0] * p[0] + m[i][1] * p[1] + m[i][2] * p[2] + m[i][3])
+    }));
+}
+
+/// The pixel rectangle a set of camera-space points can touch, clamped to the image
+/// (the whole image if a point is behind the near plane).
+pub fn footprint(cam: &Camera, points: &[[f32; 3]]) -> Rect {
+    let (mut lo, mut hi) = ([f64::INFINITY; 2], [f64::NEG_INFINITY; 2]);
+    for p in points {
+        let z = p[2] as f64;
+        if z < NEAR_MM {
+            return Rect::full(cam.width, cam.height);
+        }
+        let u = cam.fx * p[0] as f64 / z + cam.cx;
+        let v = cam.fy * p[1] as f64 / z + cam.cy;
+        lo = [lo[0].min(u), lo[1].min(v)];
+        hi = [hi[0].max(u), hi[1].max(v)];
+    }
+    if points.is_empty() {
+        return Rect {
+            x0: 0,
+            y0: 0,
+            width: 0,
+            height: 0,
+        };
+    }
+    // Pixel centres strictly inside the float bounds, plus one pixel for snapping.
+    let x0 = (lo[0].floor() - 1.0).clamp(0.0, cam.width as f64) as u32;
+    let y0 = (lo[1].floor() - 1.0).clamp(0.0, cam.height as f64) as u32;
+    let x1 = (hi[0].ceil() + 2.0).clamp(0.0, cam.width as f64) as u32;
+    let y1 = (hi[1].ceil() + 2.0).clamp(0.0, cam.height as f64) as u32;
+    Rect {
+        x0,
+        y0,
+        width: x1.saturating_sub(x0),
+        height: y1.saturating_sub(y0),
+    }
+}
+
+/// Rasterise a mesh whose vertices are already in camera space. Faces get `class_body`,
+/// or `class_boi` where the mesh marks them as boundary of interest.
+pub fn rasterise(
+    cam: &Camera,
+    mesh: &Mesh,
+    cam_points: &[[f32; 3]],
+    class_body: u8,
+    class_boi: u8,
+    target: &mut Target,
+) {
+    let Some(rect) = target.rect else { return };
+    if rect.area() == 0 {
+        return;
+    }
+    let proj = Projector::new(cam);
+    for (tri, &is_boi) in mesh.triangles.iter().zip(&mesh.boi) {
+        let class = if is_boi { class_boi } else { class_body };
+        let v = tri.map(|i| cam_points[i as usize]);
+        let behind = v.iter().filter(|p| (p[2] as f64) < NEAR_MM).count();
+        match behind {
+            0 => raster_triangle(&proj, &v, class, rect, target),
+            3 => {}
+            _ => {
+                let poly = clip_near(&v);
+                for k in 1..poly.len().saturating_sub(1) {
+                    raster_triangle(&proj, &[poly[0], poly[k], poly[k + 1]], class, rect, target);
+                }
+            }
+        }
+    }
+}
+
+/// Sutherland-Hodgman clip of a triangle against z >= NEAR_MM.
+fn clip_near(v: &[[f32; 3]; 3]) -> Vec<[f32; 3]> {
+    let near = NEAR_MM as f32;
+    let mut out = Vec::with_capacity(4);
+    for i in 0..3 {
+        let (a, b) = (v[i], v[(i + 1) % 3]);
+        let (ina, inb) = (a[2] >= near, b[2] >= near);
+        if ina {
+            out.push(a);
+        }
+        if ina != inb {
+            let s = (near - a[2]) / (b[2] - a[2]);
+            out.push([a[0] + s * (b[0] - a[0]), a[1] + s * (b[1] - a[1]), near]);
+        }
+    }
+    out
+}
+
+struct Projector {
+    fx: f64,
+    fy: f64,
+    cx: f64,
+    cy: f64,
+}
+
+impl Projector {
+    fn new(cam: &Camera) -> Self {
+        Projector {
+            fx: cam.fx,
+            fy: cam.fy,
+            cx: cam.cx,
+            cy: cam.cy,
+        }
+    }
+
+    /// Snapped framebuffer position (1/256 pixel units) and 1/z; `None` outside the guard band.
+    fn project(&self, p: &[f32; 3]) -> Option<(i64, i64, f32)> {
+        let z = p[2] as f64;
+        let u = self.fx * p[0] as f64 / z + self.cx + 0.5;
+        let v = self.fy * p[1] as f64 / z + self.cy + 0.5;
+        if u.abs() > GUARD_PIXELS || v.abs() > GUARD_PIXELS {
+            return None;
+        }
+        Some((
+            (u * SUBPIXEL).round() as i64,
+            (v * SUBPIXEL).round() as i64,
+            (1.0 / z) as f32,
+        ))
+    }
+}
+
+/// Top-left rule for y down: an edge a→b of a triangle with positive area (interior where
+/// the edge function is positive) is a top edge if horizontal pointing +x, a left edge if
+/// pointing up (−y).
+fn is_top_left(dx: i64, dy: i64) -> bool {
+    (dy == 0 && dx > 0) || dy < 0
+}
+
+fn raster_triangle(proj: &Projector, v: &[[f32; 3]; 3], class: u8, rect: Rect, target: &mut Target) {
+    let (Some(mut a), Some(mut b), Some(c)) = (proj.project(&v[0]), proj.project(&v[1]), proj.project(&v[2]))
+    else {
+        return;
+    };
+    let mut area = (b.0 - a.0) * (c.1 - a.1) - (b.1 - a.1) * (c.0 - a.0);
+    if area == 0 {
+        return;
+    }
+    if area < 0 {
+        std::mem::swap(&mut a, &mut b);
+        area = -area;
+    }
+    // Pixels whose centres (x·256 + 128) lie within the snapped bounds.
+    let floor_div = |n: i64| n.div_euclid(1 << SUBPIXEL_BITS);
+    let ceil_div = |n: i64| -(-n).div_euclid(1 << SUBPIXEL_BITS);
+    let px0 = ceil_div(a.0.min(b.0).min(c.0) - HALF_PIXEL).max(rect.x0 as i64);
+    let px1 = floor_div(a.0.max(b.0).max(c.0) - HALF_PIXEL).min((rect.x0 + rect.width) as i64 - 1);
+    let py0 = ceil_div(a.1.min(b.1).min(c.1) - HALF_PIXEL).max(rect.y0 as i64);
+    let py1 = floor_div(a.1.max(b.1).max(c.1) - HALF_PIXEL).min((rect.y0 + rect.height) as i64 - 1);
+    if px0 > px1 || py0 > py1 {
+        return;
+    }
+    // Edge e_k is opposite vertex k: e0 = b→c, e1 = c→a, e2 = a→b.
+    let edges = [(b, c), (c, a), (a, b)];
+    let bias: [i64; 3] = edges.map(|(p, q)| if is_top_left(q.0 - p.0, q.1 - p.1) { 0 } else { -1 });
+    let sx0 = px0 * (1 << SUBPIXEL_BITS) + HALF_PIXEL;
+    let sy0 = py0 * (1 << SUBPIXEL_BITS) + HALF_PIXEL;
+    let edge_at = |(p, q): ((i64, i64, f32), (i64, i64, f32)), x: i64, y: i64| {
+        (q.0 - p.0) * (y - p.1) - (q.1 - p.1) * (x - p.0)
+    };
+    let mut row = edges.map(|e| edge_at(e, sx0, sy0));
+    let step_x = edges.map(|(p, q)| -(q.1 - p.1) << SUBPIXEL_BITS);
+    let step_y = edges.map(|(p, q)| (q.0 - p.0) << SUBPIXEL_BITS);
+    let inv_area = 1.0 / area as f32;
+    let iz = [a.2, b.2, c.2];
+    let width = rect.width as usize;
+    for py in py0..=py1 {
+        let mut w = row;
+        let base = (py - rect.y0 as i64) as usize * width;
+        for px in px0..=px1 {
+            if w[0] + bias[0] >= 0 && w[1] + bias[1] >= 0 && w[2] + bias[2] >= 0 {
+                let inv_z = (w[0] as f32 * iz[0] + w[1] as f32 * iz[1] + w[2] as f32 * iz[2]) * inv_area;
+                let i = base + (px - rect.x0 as i64) as usize;
+                if inv_z > target.inv_depth[i] {
+                    target.inv_depth[i] = inv_z;
+                    target.class[i] = class;
+                }
+            }
+            for k in 0..3 {
+                w[k] += step_x[k];
+            }
+        }
+        for k in 0..3 {
+            row[k] += step_y[k];
+        }
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    fn camera(width: u32, height: u32, cx: f64, cy: f64) -> Camera {
+        Camera {
+            name: "c".into(),
+            width,
+            height,
+            fx: 100.0,
+            fy: 100.0,
+            cx,
+            cy,
+            distortion: [0.0; 5],
+            camera_from_world: Pose::IDENTITY,
+        }
+    }
+
+    /// An axis-aligned square [x0, x1] x [y0, y1] at depth z, as two triangles.
+    fn square(x0: f32, y0: f32, x1: f32, y1: f32, z: f32) -> Mesh {
+        Mesh {
+            positions: vec![[x0, y0, z], [x1, y0, z], [x1, y1, z], [x0, y1, z]],
+            triangles: vec![[0, 1, 2], [0, 2, 3]],
+            boi: vec![false, false],
+        }
+    }
+
+    fn render(cam: &Camera, mesh: &Mesh, pose: &Pose) -> Target {
+        let mut pts = Vec::new();
+        to_camera_space(mesh, pose, &mut pts);
+        let mut t = Target::default();
+        t.reset(Rect::full(cam.width, cam.height));
+        rasterise(cam, mesh, &pts, CLASS_BODY, CLASS_BOI, &mut t);
+        t
+    }
+
+    fn count(t: &Target, class: u8) -> usize {
+        t.class.iter().filter(|&&c| c == class).count()
+    }
+
+    #[test]
+    fn square_with_edges_on_pixel_centres_follows_the_top_left_rule() {
+        // Edges at u = 40 and 60, v = 30 and 50 exactly on pixel centres: left and top
+        // columns/rows are in, right and bottom are out: 20 x 20 pixels, the shared diagonal
+        // counted once.
+        let cam = camera(100, 80, 50.0, 40.0);
+        let t = render(&cam, &square(-10.0, -10.0, 10.0, 10.0, 100.0), &Pose::IDENTITY);
+        assert_eq!(count(&t, CLASS_BODY), 400);
+        let at = |x: usize, y: usize| t.class[y * 100 + x];
+        assert_eq!(at(40, 30), CLASS_BODY);
+        assert_eq!(at(59, 49), CLASS_BODY);
+        assert_eq!(at(60, 30), CLASS_NONE);
+        assert_eq!(at(40, 50), CLASS_NONE);
+        assert_eq!(at(39, 30), CLASS_NONE);
+    }
+
+    #[test]
+    fn winding_does_not_matter_and_half_pixel_edges_are_exact() {
+        // Edges at u = 39.5 .. 59.5: centres 40..=59 inside, 20 x 20 again, either winding.
+        let cam = camera(100, 80, 49.5, 39.5);
+        let mut m = square(-10.0, -10.0, 10.0, 10.0, 100.0);
+        assert_eq!(count(&render(&cam, &m, &Pose::IDENTITY), CLASS_BODY), 400);
+        for t in &mut m.triangles {
+            t.swap(1, 2);
+        }
+        assert_eq!(count(&render(&cam, &m, &Pose::IDENTITY), CLASS_BODY), 400);
+    }
+
+    #[test]
+    fn depth_test_keeps_the_nearer_surface() {
+        // A BOI square at z = 100 in front of a larger body square at z = 120.
+        let cam = camera(100, 80, 50.0, 40.0);
+        let mut front = square(-10.0, -10.0, 10.0, 10.0, 100.0);
+        front.boi = vec![true, true];
+        let back = square(-24.0, -24.0, 24.0, 24.0, 120.0); // 40 x 40 px
+        let mut both = back.clone();
+        let n = both.positions.len() as u32;
+        both.positions.extend(&front.positions);
+        both.triangles.extend(front.triangles.iter().map(|t| t.map(|i| i + n)));
+        both.boi.extend(&front.boi);
+        let t = render(&cam, &both, &Pose::IDENTITY);
+        assert_eq!(count(&t, CLASS_BOI), 400);
+        assert_eq!(count(&t, CLASS_BODY), 1600 - 400);
+        // Drawn in the other order, the same picture.
+        let mut rev = both.clone();
+        rev.triangles.reverse();
+        rev.boi.reverse();
+        let t2 = render(&cam, &rev, &Pose::IDENTITY);
+        assert_eq!(t2.class, t.class);
+    }
+
+    #[test]
+    fn geometry_crossing_the_near_plane_is_clipped_not_dropped() {
+        // A floor plane y = 10 from z = -50 (behind) to z = 200: its visible part still fills
+        // the lower image region up to the horizon.
+        let cam = camera(100, 80, 50.0, 40.0);
+        let mut floor = square(-1000.0, 10.0, 1000.0, 10.0, 0.0);
+        floor.positions = vec![
+            [-1000.0, 10.0, -50.0],
+            [1000.0, 10.0, -50.0],
+            [1000.0, 10.0, 200.0],
+            [-1000.0, 10.0, 200.0],
+        ];
+        let t = render(&cam, &floor, &Pose::IDENTITY);
+        // Rows with v >= 40 + 100·10/200 = 45 are floor.
+        let at = |x: usize, y: usize| t.class[y * 100 + x];
+        assert_eq!(at(50, 79), CLASS_BODY);
+        assert_eq!(at(50, 46), CLASS_BODY);
+        assert_eq!(at(50, 44), CLASS_NONE);
+    }
+
+    #[test]
+    fn footprint_covers_everything_drawn() {
+        let cam = camera(100, 80, 50.0, 40.0);
+        let m = square(-7.3, -3.1, 9.9, 12.2, 90.0);
+        let pose = Pose::from_euler_tuple(&[0.2, -0.3, 0.4, 1.0, 2.0, 5.0]);
+        let full = render(&cam, &m, &pose);
+        let mut pts = Vec::new();
+        to_camera_space(&m, &pose, &mut pts);
+        let r = footprint(&cam, &pts);
+        let mut t = Target::default();
+        t.reset(r);
+        rasterise(&cam, &m, &pts, CLASS_BODY, CLASS_BOI, &mut t);
+        assert_eq!(count(&t, CLASS_BODY), count(&full, CLASS_BODY));
+        assert!(count(&t, CLASS_BODY) > 100);
+    }
+}
