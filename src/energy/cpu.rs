@@ -7,7 +7,7 @@ use std::cell::RefCell;
 
 use rayon::prelude::*;
 
-use super::raster::{self, CLASS_BODY, CLASS_BOI, Rect, Target};
+use super::raster::{self, CLASS_BODY, CLASS_BOI, Target};
 use super::{Counts, Energy, EnergyEngine, Scene};
 use crate::capture::{Arch, ArchPoses, FrameMasks, LabelMask};
 use crate::error::Result;
@@ -133,20 +133,6 @@ impl EnergyEngine for CpuEnergy {
             })
             .collect())
     }
-}
-
-/// Render a label image of both arches over the whole image (upper = `upper_label`, lower =
-/// `lower_label`, depth-tested): what a perfect per-arch segmentation would show.
-pub fn render_labels(cam: &Camera, scene: &Scene, poses: &ArchPoses, upper_label: u8, lower_label: u8) -> Vec<u8> {
-    let mut points = Vec::new();
-    let mut target = Target::default();
-    target.reset(Rect::full(cam.width, cam.height));
-    for (arch, label) in [(Arch::Upper, upper_label), (Arch::Lower, lower_label)] {
-        let mesh = scene.mesh(arch);
-        raster::to_camera_space(mesh, &cam.camera_from_world.compose(poses.get(arch)), &mut points);
-        raster::rasterise(cam, mesh, &points, label, label, &mut target);
-    }
-    target.class
 }
 
 #[cfg(test)]

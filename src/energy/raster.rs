@@ -281,6 +281,19 @@ fn raster_triangle(proj: &Projector, v: &[[f32; 3]; 3], class: u8, rect: Rect, t
     }
 }
 
+/// A label image over the whole image: each mesh drawn at its pose with its label,
+/// depth-tested (what a perfect segmentation of those meshes would show).
+pub fn render_labels(cam: &Camera, items: &[(&Mesh, &Pose, u8)]) -> Vec<u8> {
+    let mut points = Vec::new();
+    let mut target = Target::default();
+    target.reset(Rect::full(cam.width, cam.height));
+    for (mesh, world_from_model, label) in items {
+        to_camera_space(mesh, &cam.camera_from_world.compose(world_from_model), &mut points);
+        rasterise(cam, mesh, &points, *label, *label, &mut target);
+    }
+    target.class
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;

@@ -1,1 +1,471 @@
+//! Synthetic captures with ground truth (`jawtrack synth`): procedural or given arches, jaw
+//! motion from a model of the temporomandibular joint, slow head motion, the camera rig of
+//! calib/, masks at half resolution with lips and segmentation noise per preset. Writes the
+//! capture format exactly, deterministically per seed.
 
+pub mod arches;
+pub mod mandible;
+pub mod masks;
+pub mod tmj;
+
+use std::path::{Path, PathBuf};
+use std::time::Instant;
+
+use nalgebra::Vector3;
+use rand::{RngExt, SeedableRng};
+use rand_chacha::ChaCha8Rng;
+use rayon::prelude::*;
+
+use crate::capture::json::{
+    ArchInitJson, BoiJson, CameraJson, CaptureJson, FrameRecordJson, FramesJson, InitJson, MasksJson,
+    MeshesJson, PoseJson, TracksJson,
+};
+use crate::capture::mesh::{BoiMarking, mark_boi, write_obj};
+use crate::capture::{Arch, ArchPoses, BoiSource, Mesh, write_atomic, write_json_atomic};
+use crate::energy::raster::render_labels;
+use crate::error::{Error, Result};
+use crate::geometry::{Camera, Pose};
+use tmj::{JawControls, JawModel, exercise_controls};
+
+/// The example rig in calib/, compiled in: what `synth` films with.
+pub const RIG: [(&str, &str); 3] = [
+    ("cam0", include_str!("../../calib/cam0.json")),
+    ("cam1", include_str!("../../calib/cam1.json")),
+    ("cam2", include_str!("../../calib/cam2.json")),
+];
+
+pub const FRAMES_PER_SECOND: f64 = 24.0;
+/// Mask labels written for per-arch masks (distinct greys, so a person can see them).
+pub const UPPER_LABEL: u8 = 85;
+pub const LOWER_LABEL: u8 = 170;
+const COMBINED_TEETH: u8 = 255;
+
+#[derive(Debug, Clone, Copy, PartialEq, Eq, clap::ValueEnum)]
+pub enum Preset {
+    /// Perfect masks of the whole crowns.
+    Clean,
+    /// Lips hide the gum side of the crowns; boundaries wander by a pixel or two; gums
+    /// between teeth filled; a few specular holes.
+    Realistic,
+    /// Faster motion, more noise, and frames where the lips close.
+    Hard,
+}
+
+#[derive(Debug, Clone, Copy, PartialEq, Eq, clap::ValueEnum)]
+pub enum MaskKind {
+    PerArch,
+    Combined,
+}
+
+#[derive(Debug, Clone)]
+pub struct SynthOptions {
+    pub frames: u32,
+    pub seed: u64,
+    pub preset: Preset,
+    pub masks: MaskKind,
+    /// A folder with upper.* and lower.* (OBJ, STL or PLY) to use instead of procedural arches.
+    pub meshes: Option<PathBuf>,
+    /// Replace `out` if it exists.
+    pub force: bool,
+}
+
+impl Default for SynthOptions {
+    fn default() -> Self {
+        SynthOptions {
+            frames: 48,
+            seed: 0,
+            preset: Preset::Realistic,
+            masks: MaskKind::PerArch,
+            meshes: None,
+            force: false,
+        }
+    }
+}
+
+/// What a synthetic capture contains, for the user and the closing note.
+#[derive(Debug, Clone, serde::Serialize)]
+pub struct SynthReport {
+    pub frames: u32,
+    pub triangles: [usize; 2],
+    pub boi_triangles: [usize; 2],
+    pub cameras: Vec<CameraStats>,
+    /// Largest incisal opening, lateral excursion to each side, protrusion (mm) and condylar
+    /// travel reached over the capture.
+    pub max_opening_mm: f64,
+    pub lateral_mm: [f64; 2],
+    pub max_protrusion_mm: f64,
+    pub max_condylar_travel_mm: f64,
+    pub seconds: f64,
+}
+
+#[derive(Debug, Clone, serde::Serialize)]
+pub struct CameraStats {
+    pub name: String,
+    pub mask_size: [u32; 2],
+    pub frames_with_mask: u32,
+    /// Mean mask pixels per frame, upper and lower.
+    pub mean_mask_pixels: [f64; 2],
+    /// Share of each arch's projection (drawn alone) that is in its mask, over all frames.
+    pub visible_share: [f64; 2],
+}
+
+/// The subject and the session: everything drawn from the seed before the frames.
+struct Session {
+    upper: Mesh,
+    lower: Mesh,
+    mandible: Mesh,
+    jaw: JawModel,
+    lips: [masks::LipLine; 2],
+    cameras: Vec<Camera>,
+    mask_cameras: Vec<Camera>,
+    /// world_from_upper at rest: the upper incisal point at the world origin.
+    world_from_upper_rest: Pose,
+    gain: [f64; 3],
+    head_phase: [f64; 6],
+    lip_phase: [f64; 2],
+    /// The lower incisal point, lower frame (for the motion report).
+    lower_incisor: Vector3<f64>,
+}
+
+/// Load the rig from calib/ (compiled in).
+pub fn rig_cameras() -> Vec<Camera> {
+    RIG.iter()
+        .map(|(name, json)| {
+            let cj: CameraJson = serde_json::from_str(json).expect("calib/ camera files are valid JSON");
+            let pose = PoseJson {
+                rotation: cj.rotation,
+                translation: cj.translation,
+            }
+            .to_pose(Path::new(name), "calib")
+            .expect("calib/ rotations are rotations");
+            Camera {
+                name: name.to_string(),
+                width: cj.width as u32,
+                height: cj.height as u32,
+                fx: cj.fx,
+                fy: cj.fy,
+                cx: cj.cx,
+                cy: cj.cy,
+                distortion: [0.0; 5],
+                camera_from_world: pose,
+            }
+        })
+        .collect()
+}
+
+fn load_arch(dir: &Path, arch: Arch) -> Result<Mesh> {
+    let path = ["obj", "stl", "ply"]
+        .iter()
+        .map(|ext| dir.join(format!("{}.{ext}", arch.name())))
+        .find(|p| p.exists())
+        .ok_or_else(|| Error::Missing {
+            path: dir.join(format!("{}.obj", arch.name())),
+            what: format!("{} arch mesh ({}.obj, .stl or .ply)", arch.name(), arch.name()),
+        })?;
+    let mut mesh = Mesh::load(&path, BoiSource::GroupIfPresent("boi"))?;
+    if mesh.boi_face_count() == 0 && mark_boi(&mut mesh, &BoiMarking::for_arch(arch == Arch::Upper)) == 0 {
+        return Err(Error::invalid(
+            &path,
+            "boi",
+            "no boundary of interest could be marked (is the mesh in the scan frame: y up, +z anterior?)",
+        ));
+    }
+    Ok(mesh)
+}
+
+impl Session {
+    fn new(opts: &SynthOptions) -> Result<Session> {
+        let mut rng = ChaCha8Rng::seed_from_u64(opts.seed);
+        let (upper, lower) = match &opts.meshes {
+            Some(dir) => (load_arch(dir, Arch::Upper)?, load_arch(dir, Arch::Lower)?),
+            None => (arches::procedural_arch(true), arches::procedural_arch(false)),
+        };
+        let rest = arches::rest_bite(&upper, &lower);
+        let jaw = JawModel::for_arches(&upper, rest);
+        let mandible = mandible::mandible_mesh(&lower, &jaw);
+        let (ulo, uhi) = upper.bounds();
+        let anchor = Vector3::new((ulo[0] + uhi[0]) as f64 * 0.5, ulo[1] as f64, uhi[2] as f64);
+        let (llo, lhi) = lower.bounds();
+        let lower_incisor = Vector3::new((llo[0] + lhi[0]) as f64 * 0.5, lhi[1] as f64, lhi[2] as f64);
+        let cameras = rig_cameras();
+        let mask_cameras = cameras
+            .iter()
+            .map(|c| c.scaled_to(c.width / 2, c.height / 2))
+            .collect();
+        let lips = [masks::LipLine::new(&upper, Arch::Upper), masks::LipLine::new(&lower, Arch::Lower)];
+        let mut phase = || rng.random_range(0.0..std::f64::consts::TAU);
+        let head_phase = [phase(), phase(), phase(), phase(), phase(), phase()];
+        let lip_phase = [phase(), phase()];
+        let gain = [rng.random_range(0.9..=1.0), rng.random_range(0.9..=1.0), rng.random_range(0.9..=1.0)];
+        Ok(Session {
+            upper,
+            lower,
+            mandible,
+            jaw,
+            lips,
+            cameras,
+            mask_cameras,
+            world_from_upper_rest: Pose::from_translation(-anchor),
+            gain,
+            head_phase,
+            lip_phase,
+            lower_incisor,
+        })
+    }
+
+    fn controls(&self, index: u32, opts: &SynthOptions) -> JawControls {
+        let tau = if opts.frames > 1 { index as f64 / (opts.frames - 1) as f64 } else { 0.0 };
+        let repeats = if opts.preset == Preset::Hard { 2 } else { 1 };
+        exercise_controls(tau, repeats, &self.gain)
+    }
+
+    /// Slow head motion: about ±2° and ±2 mm, periods of 4 to 9 s, about the incisors.
+    fn world_from_upper(&self, index: u32) -> Pose {
+        let t = index as f64 / FRAMES_PER_SECOND;
+        let periods = [7.0, 9.0, 5.0, 6.0, 8.0, 4.0];
+        let w: [f64; 6] = std::array::from_fn(|k| {
+            (std::f64::consts::TAU * t / periods[k] + self.head_phase[k]).sin() - self.head_phase[k].sin()
+        });
+        let a = 2f64.to_radians();
+        let wobble = Pose::from_euler_tuple(&[a * w[0], a * w[1], a * w[2], 2.0 * w[3], 2.0 * w[4], 2.0 * w[5]]);
+        wobble.compose(&self.world_from_upper_rest)
+    }
+
+    /// Visible crown beyond the tips at the midline (mm), upper and lower lip.
+    fn lip_show(&self, index: u32, opts: &SynthOptions) -> [f64; 2] {
+        let t = index as f64 / FRAMES_PER_SECOND;
+        let tau = if opts.frames > 1 { index as f64 / (opts.frames - 1) as f64 } else { 0.0 };
+        if opts.preset == Preset::Hard && ((0.30..0.34).contains(&tau) || (0.70..0.73).contains(&tau)) {
+            return [-4.0, -4.0]; // the lips close
+        }
+        [
+            5.0 + 1.0 * (std::f64::consts::TAU * t / 5.0 + self.lip_phase[0]).sin(),
+            4.0 + 1.0 * (std::f64::consts::TAU * t / 7.0 + self.lip_phase[1]).sin(),
+        ]
+    }
+}
+
+/// One camera's mask of one frame, and its statistics.
+struct RenderedMask {
+    png: Option<Vec<u8>>,
+    mask_pixels: [u64; 2],
+    alone_pixels: [u64; 2],
+}
+
+fn render_mask(s: &Session, cam: &Camera, poses: &ArchPoses, show: [f64; 2], opts: &SynthOptions, rng: &mut ChaCha8Rng) -> RenderedMask {
+    let (w, h) = (cam.width as usize, cam.height as usize);
+    let mut labels = render_labels(cam, &[(&s.upper, &poses.upper, UPPER_LABEL), (&s.lower, &poses.lower, LOWER_LABEL)]);
+    let alone = |mesh: &Mesh, pose: &Pose| {
+        render_labels(cam, &[(mesh, pose, 1)]).iter().filter(|&&l| l != 0).count() as u64
+    };
+    let alone_pixels = [alone(&s.upper, &poses.upper), alone(&s.lower, &poses.lower)];
+    let (jitter, holes, hole_radius) = match opts.preset {
+        Preset::Clean => (0.0, 0, 1),
+        Preset::Realistic => (1.5, 3, 2),
+        Preset::Hard => (2.5, 8, 3),
+    };
+    if opts.preset != Preset::Clean {
+        masks::fill_between_teeth(&mut labels, w, h, 2, &[UPPER_LABEL, LOWER_LABEL]);
+        let opening = masks::lip_opening(cam, poses, &s.lips, show);
+        masks::apply_lips(&mut labels, w, &opening);
+        masks::specular_holes(&mut labels, w, holes, hole_radius, rng);
+        labels = masks::wander_boundaries(&labels, w, jitter, rng);
+    }
+    let mask_pixels = [
+        labels.iter().filter(|&&l| l == UPPER_LABEL).count() as u64,
+        labels.iter().filter(|&&l| l == LOWER_LABEL).count() as u64,
+    ];
+    if opts.masks == MaskKind::Combined {
+        for l in &mut labels {
+            if *l != 0 {
+                *l = COMBINED_TEETH;
+            }
+        }
+    }
+    // A camera that sees no teeth writes no mask: the format's "saw nothing usable".
+    let png = (mask_pixels[0] + mask_pixels[1] > 0).then(|| encode_png(&labels, cam.width, cam.height));
+    RenderedMask {
+        png,
+        mask_pixels,
+        alone_pixels,
+    }
+}
+
+fn encode_png(grey: &[u8], width: u32, height: u32) -> Vec<u8> {
+    use image::ImageEncoder;
+    let mut out = Vec::new();
+    image::codecs::png::PngEncoder::new_with_quality(
+        &mut out,
+        image::codecs::png::CompressionType::Fast,
+        image::codecs::png::FilterType::Adaptive,
+    )
+    .write_image(grey, width, height, image::ExtendedColorType::L8)
+    .expect("encoding a grey image into memory cannot fail");
+    out
+}
+
+/// Write a synthetic capture to `out`. `progress` is called once per finished frame.
+pub fn generate(out: &Path, opts: &SynthOptions, progress: &(dyn Fn() + Sync)) -> Result<SynthReport> {
+    let started = Instant::now();
+    if opts.frames == 0 {
+        return Err(Error::invalid(out, "--frames", "must be at least 1"));
+    }
+    if out.exists() && !opts.force {
+        return Err(Error::invalid(
+            out,
+            "OUT",
+            "already exists; choose another folder or pass --force to replace it",
+        ));
+    }
+    let session = Session::new(opts)?;
+    // Build beside the target, then move into place: a crash never leaves half a capture.
+    let parent = out.parent().filter(|p| !p.as_os_str().is_empty()).unwrap_or(Path::new("."));
+    std::fs::create_dir_all(parent).map_err(|source| Error::Write { path: parent.to_path_buf(), source })?;
+    let staging = tempfile::Builder::new()
+        .prefix(".jawtrack-synth-")
+        .tempdir_in(parent)
+        .map_err(|source| Error::Write { path: parent.to_path_buf(), source })?;
+    let dir = staging.path();
+    let report = write_capture(dir, &session, opts, progress, started)?;
+    if out.exists() {
+        std::fs::remove_dir_all(out).map_err(|source| Error::Write { path: out.to_path_buf(), source })?;
+    }
+    let dir = staging.keep();
+    std::fs::rename(&dir, out).map_err(|source| Error::Write { path: out.to_path_buf(), source })?;
+    Ok(report)
+}
+
+fn write_capture(
+    dir: &Path,
+    s: &Session,
+    opts: &SynthOptions,
+    progress: &(dyn Fn() + Sync),
+    started: Instant,
+) -> Result<SynthReport> {
+    let names: Vec<String> = s.cameras.iter().map(|c| c.name.clone()).collect();
+    let capture = CaptureJson {
+        format: crate::capture::json::CAPTURE_FORMAT.into(),
+        cameras: names.clone(),
+        frames: FramesJson {
+            first: 0,
+            count: opts.frames,
+        },
+        meshes: MeshesJson {
+            upper: "meshes/upper.obj".into(),
+            lower: "meshes/lower.obj".into(),
+            mandible: Some("meshes/mandible.obj".into()),
+        },
+        boi: BoiJson::Group { group: "boi".into() },
+        masks: match opts.masks {
+            MaskKind::PerArch => MasksJson {
+                dir: "masks".into(),
+                mode: "per-arch".into(),
+                upper: Some(UPPER_LABEL as i64),
+                lower: Some(LOWER_LABEL as i64),
+            },
+            MaskKind::Combined => MasksJson {
+                dir: "masks".into(),
+                mode: "combined".into(),
+                upper: None,
+                lower: None,
+            },
+        },
+    };
+    write_json_atomic(&dir.join("capture.json"), &capture)?;
+    for (name, json) in RIG {
+        write_atomic(&dir.join("cameras").join(format!("{name}.json")), json.as_bytes())?;
+    }
+    write_obj(&s.upper, &dir.join("meshes/upper.obj"))?;
+    write_obj(&s.lower, &dir.join("meshes/lower.obj"))?;
+    write_obj(&s.mandible, &dir.join("meshes/mandible.obj"))?;
+
+    let frames: Vec<_> = (0..opts.frames)
+        .into_par_iter()
+        .map(|index| -> Result<_> {
+            let controls = s.controls(index, opts);
+            let upper = s.world_from_upper(index);
+            let jaw = s.jaw.jaw_pose(&controls);
+            let poses = ArchPoses {
+                upper,
+                lower: upper.compose(&jaw),
+            };
+            let show = s.lip_show(index, opts);
+            let mut stats = Vec::with_capacity(s.mask_cameras.len());
+            for (c, cam) in s.mask_cameras.iter().enumerate() {
+                let mut rng = ChaCha8Rng::seed_from_u64(opts.seed ^ ((index as u64) << 8 | c as u64).wrapping_mul(0x9E37_79B9_7F4A_7C15));
+                let m = render_mask(s, cam, &poses, show, opts, &mut rng);
+                if let Some(png) = &m.png {
+                    write_atomic(&dir.join("masks").join(&cam.name).join(format!("{index:06}.png")), png)?;
+                }
+                stats.push(m);
+            }
+            progress();
+            Ok((index, poses, controls, stats))
+        })
+        .collect::<Result<_>>()?;
+
+    let records: Vec<FrameRecordJson> = frames
+        .iter()
+        .map(|(index, poses, _, _)| FrameRecordJson {
+            frame: *index,
+            upper: (&poses.upper).into(),
+            lower: (&poses.lower).into(),
+            jaw: Some((&poses.jaw()).into()),
+            energy: None,
+            area_error: None,
+            status: None,
+        })
+        .collect();
+    write_json_atomic(&dir.join("gt/poses.json"), &TracksJson {
+        format: crate::capture::json::TRACKS_FORMAT.into(),
+        frames: records,
+    })?;
+    let first = &frames[0].1;
+    write_json_atomic(&dir.join("init.json"), &InitJson {
+        upper: ArchInitJson::Pose((&first.upper).into()),
+        lower: ArchInitJson::Pose((&first.lower).into()),
+    })?;
+
+    let rest_incisor = s.jaw.rest.transform_point(&s.lower_incisor);
+    let mut report = SynthReport {
+        frames: opts.frames,
+        triangles: [s.upper.triangles.len(), s.lower.triangles.len()],
+        boi_triangles: [s.upper.boi_face_count(), s.lower.boi_face_count()],
+        cameras: Vec::new(),
+        max_opening_mm: 0.0,
+        lateral_mm: [0.0, 0.0],
+        max_protrusion_mm: 0.0,
+        max_condylar_travel_mm: 0.0,
+        seconds: 0.0,
+    };
+    for (_, poses, controls, _) in &frames {
+        let d = poses.jaw().transform_point(&s.lower_incisor) - rest_incisor;
+        report.max_opening_mm = report.max_opening_mm.max(-d.y);
+        report.lateral_mm = [report.lateral_mm[0].min(d.x), report.lateral_mm[1].max(d.x)];
+        report.max_protrusion_mm = report.max_protrusion_mm.max(d.z);
+        let (sl, sr, _) = s.jaw.joint_state(controls);
+        report.max_condylar_travel_mm = report.max_condylar_travel_mm.max(sl.max(sr));
+    }
+    for (c, cam) in s.mask_cameras.iter().enumerate() {
+        let mut with_mask = 0;
+        let mut mask = [0u64; 2];
+        let mut alone = [0u64; 2];
+        for (_, _, _, stats) in &frames {
+            let m = &stats[c];
+            with_mask += m.png.is_some() as u32;
+            for k in 0..2 {
+                mask[k] += m.mask_pixels[k];
+                alone[k] += m.alone_pixels[k];
+            }
+        }
+        report.cameras.push(CameraStats {
+            name: cam.name.clone(),
+            mask_size: [cam.width, cam.height],
+            frames_with_mask: with_mask,
+            mean_mask_pixels: mask.map(|m| m as f64 / opts.frames as f64),
+            visible_share: [0, 1].map(|k| if alone[k] == 0 { 0.0 } else { mask[k] as f64 / alone[k] as f64 }),
+        });
+    }
+    report.seconds = started.elapsed().as_secs_f64();
+    Ok(report)
+}

@@ -29,6 +29,8 @@ pub enum BoiSource<'a> {
     Group(&'a str),
     /// A JSON list of face indices.
     FaceList(&'a Path),
+    /// The group if the file has one of that name with faces, else no BOI.
+    GroupIfPresent(&'a str),
     /// No BOI (all faces are body).
     None,
 }
@@ -65,6 +67,13 @@ impl Mesh {
         };
         let boi_flags = match boi {
             BoiSource::None => vec![false; raw.triangles.len()],
+            BoiSource::GroupIfPresent(name) => {
+                let tag = raw.tags.iter().position(|t| t == name).map(|i| i as u32);
+                raw.face_tags
+                    .iter()
+                    .map(|ft| tag.is_some_and(|t| ft.contains(&t)))
+                    .collect()
+            }
             BoiSource::Group(name) => {
                 if ext != "obj" {
                     return Err(Error::invalid(
