@@ -19,9 +19,12 @@ pub enum Error {
         #[source]
         source: std::io::Error,
     },
-    #[error("{}: malformed JSON: {source}", path.display())]
+    /// JSON that does not parse or does not fit the schema; `field` is where (`.` for the
+    /// document itself).
+    #[error("{}: `{field}`: malformed JSON: {source}", path.display())]
     Json {
         path: PathBuf,
+        field: String,
         #[source]
         source: serde_json::Error,
     },

@@ -156,9 +156,11 @@ pub struct FrameRecordJson {
 /// Read and parse a JSON file; a missing file is [`Error::Missing`] with `what`.
 pub fn read_json<T: DeserializeOwned>(path: &Path, what: &str) -> Result<T> {
     let text = std::fs::read_to_string(path).map_err(|e| Error::read(path, what, e))?;
-    serde_json::from_str(&text).map_err(|source| Error::Json {
+    let de = &mut serde_json::Deserializer::from_str(&text);
+    serde_path_to_error::deserialize(de).map_err(|e| Error::Json {
         path: path.to_path_buf(),
-        source,
+        field: e.path().to_string(),
+        source: e.into_inner(),
     })
 }
 

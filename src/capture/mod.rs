@@ -580,6 +580,12 @@ fn scan_masks(cam_dir: &Path) -> Result<(Option<(u32, u32)>, BTreeSet<u32>)> {
     Ok((size.map(|(s, _)| s), frames))
 }
 
+/// Read a pose file: `{"rotation": [[...], [...], [...]], "translation": [...]}`.
+pub fn read_pose_file(path: &Path) -> Result<Pose> {
+    let pj: json::PoseJson = read_json(path, "pose file")?;
+    pj.to_pose(path, "pose")
+}
+
 /// Read gt/poses.json or a tracks.json (frame, upper, lower are required).
 pub fn read_poses(path: &Path) -> Result<Vec<FramePoses>> {
     let tj: TracksJson = read_json(path, "poses file")?;

@@ -186,6 +186,16 @@ impl Pose {
         [theta_x, theta_y, theta_z, t.x, t.y, t.z]
     }
 
+    /// The pose with `delta` added to its 6-tuple (θx, θy, θz, tx, ty, tz): rotations about
+    /// the model's origin, translations in the parent frame (the paper's search space).
+    pub fn with_euler_offset(&self, delta: &[f64; 6]) -> Pose {
+        let mut t = self.to_euler_tuple();
+        for (a, d) in t.iter_mut().zip(delta) {
+            *a += d;
+        }
+        Pose::from_euler_tuple(&t)
+    }
+
     /// Re-orthonormalise a 3x3 matrix read from a file; `None` if it is not a rotation
     /// within `tol` (max |RᵀR − I| entry, and det ≈ +1).
     pub fn rotation_from_rows(rows: &[[f64; 3]; 3], tol: f64) -> Option<Rotation3<f64>> {

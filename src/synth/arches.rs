@@ -212,13 +212,17 @@ mod tests {
             m.validate(std::path::Path::new("procedural")).unwrap();
             let (lo, hi) = m.bounds();
             assert!(hi[0] - lo[0] > 45.0 && hi[0] - lo[0] < 70.0, "arch width {lo:?} {hi:?}");
-            // BOI: a band at the front of the arch, near the tips.
-            let boi = m.boi_face_count();
-            assert!(boi > 50 && boi < m.triangles.len() / 8, "{boi}");
+            // BOI: on the six front crowns (central incisor to canine, each side), on each of
+            // them, and on no premolar or molar; crowns are built in order from the midline.
+            let per_crown = m.triangles.len() / 14;
+            for k in 0..14 {
+                let n = m.boi[k * per_crown..(k + 1) * per_crown].iter().filter(|&&b| b).count();
+                let front = k % 7 < 3;
+                assert_eq!(n > 0, front, "upper={upper} crown {k}: {n} BOI faces");
+            }
+            // ... and near the tips.
             for (t, _) in m.triangles.iter().zip(&m.boi).filter(|(_, b)| **b) {
                 let p = m.positions[t[0] as usize];
-                // Canine to canine: up to the canines' distal edges (x ≈ ±22 mm) and in front.
-                assert!(p[0].abs() < 22.5 && p[2] > hi[2] - 18.0, "BOI face off the front teeth: {p:?}");
                 let tip_distance = if upper { p[1] - lo[1] } else { hi[1] - p[1] };
                 assert!(tip_distance < 2.5, "BOI face too far from the tips: {p:?}");
             }

@@ -196,7 +196,7 @@ impl Session {
         let mut phase = || rng.random_range(0.0..std::f64::consts::TAU);
         let head_phase = [phase(), phase(), phase(), phase(), phase(), phase()];
         let lip_phase = [phase(), phase()];
-        let gain = [rng.random_range(0.9..=1.0), rng.random_range(0.9..=1.0), rng.random_range(0.9..=1.0)];
+        let gain = [rng.random_range(0.95..=1.0), rng.random_range(0.95..=1.0), rng.random_range(0.95..=1.0)];
         Ok(Session {
             upper,
             lower,

@@ -51,11 +51,11 @@ impl JawModel {
             condyle_right: Vector3::new(mid_x - 50.0, y, z),
             eminence_height_mm: 7.0,
             eminence_length_mm: 20.0,
-            max_opening_rad: 28f64.to_radians(),
+            max_opening_rad: 30f64.to_radians(),
             hinge_only_rad: 6f64.to_radians(),
             opening_travel_mm: 16.0,
-            protrusion_travel_mm: 9.0,
-            lateral_travel_mm: 9.5,
+            protrusion_travel_mm: 11.0,
+            lateral_travel_mm: 11.5,
             rest,
         }
     }
@@ -120,7 +120,7 @@ const EXERCISE: [(f64, f64, f64); 17] = [
     (0.0, 0.0, 0.0),
     (0.08, -1.0, 0.0), // right excursion
     (0.0, 0.0, 0.0),
-    (0.08, 0.0, 1.0),  // protrusion
+    (0.03, 0.0, 1.0),  // protrusion
     (0.45, 0.0, 0.6),  // open while protruded
     (0.0, 0.0, 0.0),
     (0.6, 0.6, 0.0),   // open to the left

@@ -20,11 +20,12 @@ pub struct BoiMarking {
 
 impl BoiMarking {
     /// Defaults from typical mesiodistal crown widths: the three front teeth take about 41%
-    /// of the upper half-arch and 33% of the lower one; the band is 1.5 mm deep.
+    /// of the upper half-arch and 33% of the lower one. The cut is placed a little inside
+    /// that (the canine's cusp is in, the first premolar out); the band is 1.5 mm deep.
     pub fn for_arch(upper: bool) -> Self {
         BoiMarking {
             upper,
-            front_fraction: if upper { 0.41 } else { 0.33 },
+            front_fraction: if upper { 0.37 } else { 0.29 },
             band_mm: 1.5,
         }
     }
@@ -61,15 +62,22 @@ pub fn mark_boi(mesh: &mut Mesh, m: &BoiMarking) -> usize {
         sum[b][2] += 1.0;
         top[b] = top[b].max(bite * p[1] as f64);
     }
-    // Arc length through the bins' mean points, signed from the anterior bin.
+    // Arc length along the arch: the bins' mean points, smoothed over ±3 bins so the
+    // curve does not zigzag between buccal and lingual surfaces, then summed.
+    let means: Vec<Option<[f64; 2]>> = sum
+        .iter()
+        .map(|m| (m[2] > 0.0).then(|| [m[0] / m[2], m[1] / m[2]]))
+        .collect();
     let mut arc = vec![f64::NAN; ANGLE_BINS];
     let mut acc = 0.0;
     let mut prev: Option<[f64; 2]> = None;
     for b in 0..ANGLE_BINS {
-        if sum[b][2] == 0.0 {
+        if means[b].is_none() {
             continue;
         }
-        let q = [sum[b][0] / sum[b][2], sum[b][1] / sum[b][2]];
+        let near: Vec<[f64; 2]> = (b.saturating_sub(3)..(b + 4).min(ANGLE_BINS)).filter_map(|k| means[k]).collect();
+        let n = near.len() as f64;
+        let q = [near.iter().map(|p| p[0]).sum::<f64>() / n, near.iter().map(|p| p[1]).sum::<f64>() / n];
         if let Some(pq) = prev {
             acc += ((q[0] - pq[0]).powi(2) + (q[1] - pq[1]).powi(2)).sqrt();
         }

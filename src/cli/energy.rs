@@ -1,0 +1,109 @@
+use std::path::PathBuf;
+use std::time::Instant;
+
+use anyhow::{Context, anyhow};
+use jawtrack::capture::{Arch, ArchPoses, Capture, OpenOptions, read_pose_file};
+use jawtrack::energy::{CpuEnergy, DEFAULT_LAMBDA, Energy, EnergyEngine, Scene};
+
+#[derive(clap::Args)]
+pub struct Args {
+    /// The capture folder.
+    pub capture: PathBuf,
+    /// The frame to evaluate.
+    #[arg(long)]
+    pub frame: u32,
+    /// Upper arch pose (JSON: rotation, translation); default: ground truth, or init.json
+    /// for the first frame.
+    #[arg(long)]
+    pub upper: Option<PathBuf>,
+    /// Lower arch pose; default as for --upper.
+    #[arg(long)]
+    pub lower: Option<PathBuf>,
+    /// Weight of the boundary term.
+    #[arg(long, default_value_t = DEFAULT_LAMBDA)]
+    pub lambda: f64,
+    /// Simplify each arch to at most this many triangles at load.
+    #[arg(long)]
+    pub max_triangles: Option<usize>,
+}
+
+pub fn run(a: Args) -> anyhow::Result<()> {
+    let capture = Capture::open_with(&a.capture, OpenOptions { max_triangles: a.max_triangles })
+        .with_context(|| format!("invalid capture {}", a.capture.display()))?;
+    if !capture.frames().contains(&a.frame) {
+        return Err(anyhow!(
+            "--frame {}: the capture has frames {}..{}",
+            a.frame,
+            capture.first_frame,
+            capture.first_frame + capture.frame_count
+        ));
+    }
+    let default = default_poses(&capture, a.frame);
+    let pick = |arg: &Option<PathBuf>, arch: Arch| -> anyhow::Result<_> {
+        match arg {
+            Some(p) => Ok(read_pose_file(p)?),
+            None => default.map(|d| *d.get(arch)).ok_or_else(|| {
+                anyhow!(
+                    "no pose for the {} arch: pass --{} POSE.json (the capture has no ground truth for frame {}{})",
+                    arch.name(),
+                    arch.name(),
+                    a.frame,
+                    if a.frame == capture.first_frame { " and no init.json" } else { "" }
+                )
+            }),
+        }
+    };
+    let poses = ArchPoses {
+        upper: pick(&a.upper, Arch::Upper)?,
+        lower: pick(&a.lower, Arch::Lower)?,
+    };
+    let mut engine = CpuEnergy::new(Scene::from_capture(&capture));
+    engine.set_frame(&capture.load_masks(a.frame)?)?;
+    eprintln!("backend: {}", engine.name());
+    println!("frame {}  lambda {}", a.frame, a.lambda);
+    println!("arch   camera  mask_px  uncovered  boi_outside  total      off/none off/body off/boi on/none on/body on/boi");
+    for arch in Arch::BOTH {
+        let started = Instant::now();
+        let e = engine.evaluate(arch, &[poses])?.remove(0);
+        eprintln!("{} arch: evaluated in {:.2} ms", arch.name(), started.elapsed().as_secs_f64() * 1e3);
+        print_energy(arch, &capture.camera_names(), &e, a.lambda);
+    }
+    Ok(())
+}
+
+/// Ground truth for the frame, else init.json's poses for the first frame.
+pub fn default_poses(capture: &Capture, frame: u32) -> Option<ArchPoses> {
+    capture
+        .gt_poses(frame)
+        .or_else(|| (frame == capture.first_frame).then(|| capture.initial_poses().ok()).flatten())
+}
+
+pub fn print_energy(arch: Arch, cameras: &[&str], e: &Energy, lambda: f64) {
+    for (name, c) in cameras.iter().zip(&e.cameras) {
+        println!(
+            "{:<6} {:<7} {:>7}  {:>9}  {:>11}  {:>9.1}  {:>8} {:>8} {:>7} {:>7} {:>7} {:>6}",
+            arch.name(),
+            name,
+            c.mask_pixels(),
+            c.uncovered(),
+            c.boi_outside(),
+            c.total(lambda),
+            c.bins[0],
+            c.bins[1],
+            c.bins[2],
+            c.bins[3],
+            c.bins[4],
+            c.bins[5]
+        );
+    }
+    println!(
+        "{:<6} {:<7} {:>7}  {:>9}  {:>11}  {:>9.1}  area error {:.3}%",
+        arch.name(),
+        "all",
+        e.mask_pixels(),
+        e.uncovered(),
+        e.boi_outside(),
+        e.total(lambda),
+        100.0 * e.area_error()
+    );
+}

@@ -1,0 +1,64 @@
+//! clap commands: the only place that prints or uses anyhow.
+
+mod demo;
+mod energy;
+mod mesh;
+mod synth;
+mod validate;
+
+use std::process::ExitCode;
+
+use clap::{Parser, Subcommand};
+
+/// Track the teeth in multi-camera video and learn how the jaw moves.
+#[derive(Parser)]
+#[command(name = "jawtrack", version, about, long_about = None)]
+struct Cli {
+    #[command(subcommand)]
+    command: Command,
+}
+
+#[derive(Subcommand)]
+enum Command {
+    /// Synthesise a realistic capture, check it and show its energy (no arguments needed).
+    Demo(demo::Args),
+    /// Write a synthetic capture with ground truth.
+    Synth(synth::Args),
+    /// Check a capture and print a summary, or what is wrong.
+    Validate(validate::Args),
+    /// Print the energy terms of a frame per camera and arch.
+    Energy(energy::Args),
+    /// Mesh tools.
+    #[command(subcommand)]
+    Mesh(mesh::Command),
+}
+
+pub fn main() -> ExitCode {
+    let cli = Cli::parse();
+    let result = match cli.command {
+        Command::Demo(a) => demo::run(a),
+        Command::Synth(a) => synth::run(a),
+        Command::Validate(a) => validate::run(a),
+        Command::Energy(a) => energy::run(a),
+        Command::Mesh(c) => mesh::run(c),
+    };
+    match result {
+        Ok(()) => ExitCode::SUCCESS,
+        Err(e) => {
+            eprintln!("error: {e:#}");
+            ExitCode::FAILURE
+        }
+    }
+}
+
+/// A progress bar on stderr (hidden when stderr is not a terminal).
+pub(crate) fn progress_bar(len: u64, what: &str) -> indicatif::ProgressBar {
+    let bar = indicatif::ProgressBar::new(len);
+    bar.set_style(
+        indicatif::ProgressStyle::with_template("{msg} [{bar:30}] {pos}/{len} {per_sec} eta {eta}")
+            .expect("a valid template")
+            .progress_chars("=> "),
+    );
+    bar.set_message(what.to_string());
+    bar
+}

@@ -1,0 +1,84 @@
+use std::path::{Path, PathBuf};
+
+use anyhow::Context;
+use jawtrack::synth::{self, MaskKind, Preset, SynthOptions, SynthReport};
+
+#[derive(clap::Args)]
+pub struct Args {
+    /// Folder to write the capture to (must not exist, unless --force).
+    pub out: PathBuf,
+    /// Number of frames (24 per second).
+    #[arg(long, default_value_t = 48)]
+    pub frames: u32,
+    /// Random seed: the same seed writes the same capture.
+    #[arg(long, default_value_t = 0)]
+    pub seed: u64,
+    /// How much the masks are degraded.
+    #[arg(long, value_enum, default_value_t = Preset::Realistic)]
+    pub preset: Preset,
+    /// One mask per arch, or one teeth mask for both.
+    #[arg(long, value_enum, default_value_t = MaskKind::PerArch)]
+    pub masks: MaskKind,
+    /// Folder with upper.{obj,stl,ply} and lower.{obj,stl,ply} (scan frame: y up, +z anterior)
+    /// to use instead of procedural arches.
+    #[arg(long)]
+    pub meshes: Option<PathBuf>,
+    /// Replace OUT if it exists.
+    #[arg(long)]
+    pub force: bool,
+    /// Print the report as JSON.
+    #[arg(long)]
+    pub json: bool,
+}
+
+pub fn run(a: Args) -> anyhow::Result<()> {
+    let opts = SynthOptions {
+        frames: a.frames,
+        seed: a.seed,
+        preset: a.preset,
+        masks: a.masks,
+        meshes: a.meshes,
+        force: a.force,
+    };
+    let report = generate(&a.out, &opts)?;
+    if a.json {
+        println!("{}", serde_json::to_string_pretty(&report)?);
+    } else {
+        print_report(&a.out, &report);
+    }
+    Ok(())
+}
+
+pub fn generate(out: &Path, opts: &SynthOptions) -> anyhow::Result<SynthReport> {
+    let bar = super::progress_bar(opts.frames as u64, "synth");
+    let report = synth::generate(out, opts, &|| bar.inc(1))
+        .with_context(|| format!("writing a synthetic capture to {}", out.display()))?;
+    bar.finish_and_clear();
+    Ok(report)
+}
+
+pub fn print_report(out: &Path, r: &SynthReport) {
+    println!("wrote {} ({} frames in {:.2} s)", out.display(), r.frames, r.seconds);
+    println!(
+        "meshes: upper {} triangles ({} BOI), lower {} ({} BOI)",
+        r.triangles[0], r.boi_triangles[0], r.triangles[1], r.boi_triangles[1]
+    );
+    println!(
+        "motion: opening up to {:.1} mm, lateral {:.1} to {:.1} mm, protrusion up to {:.1} mm, condylar travel up to {:.1} mm",
+        r.max_opening_mm, r.lateral_mm[0], r.lateral_mm[1], r.max_protrusion_mm, r.max_condylar_travel_mm
+    );
+    println!("camera  mask size  frames with mask  mean mask px (upper, lower)  visible share (upper, lower)");
+    for c in &r.cameras {
+        println!(
+            "{:<6}  {}x{}    {:>5}             {:>7.0} {:>7.0}             {:>5.1}% {:>5.1}%",
+            c.name,
+            c.mask_size[0],
+            c.mask_size[1],
+            c.frames_with_mask,
+            c.mean_mask_pixels[0],
+            c.mean_mask_pixels[1],
+            100.0 * c.visible_share[0],
+            100.0 * c.visible_share[1]
+        );
+    }
+}

@@ -1,0 +1,251 @@
+//! Bad input gets an error that names the file, the field and what is wrong; never a panic.
+
+mod common;
+
+use std::path::Path;
+
+use common::{edit_json, fresh_capture};
+use jawtrack::capture::Capture;
+
+/// Open the capture and return the error text; panics if it opened.
+fn error_of(dir: &Path) -> String {
+    match Capture::open(dir) {
+        Ok(_) => panic!("{} opened without error", dir.display()),
+        Err(e) => e.to_string(),
+    }
+}
+
+fn assert_mentions(msg: &str, parts: &[&str]) {
+    for p in parts {
+        assert!(msg.contains(p), "error {msg:?} does not mention {p:?}");
+    }
+}
+
+#[test]
+fn the_template_opens() {
+    let (_t, dir) = fresh_capture();
+    let c = Capture::open(&dir).unwrap();
+    assert_eq!(c.cameras.len(), 3);
+    assert_eq!(c.frame_count, 6);
+}
+
+#[test]
+fn missing_capture_json() {
+    let (_t, dir) = fresh_capture();
+    std::fs::remove_file(dir.join("capture.json")).unwrap();
+    assert_mentions(&error_of(&dir), &["capture.json", "not found"]);
+}
+
+#[test]
+fn malformed_json_names_the_place() {
+    let (_t, dir) = fresh_capture();
+    std::fs::write(dir.join("capture.json"), "{\"format\": \"jawtrack-capture/1\", \"cameras\": [\"cam0\",").unwrap();
+    assert_mentions(&error_of(&dir), &["capture.json", "malformed JSON", "cameras"]);
+}
+
+#[test]
+fn wrong_format() {
+    let (_t, dir) = fresh_capture();
+    edit_json(&dir.join("capture.json"), |v| v["format"] = "jawtrack-capture/2".into());
+    assert_mentions(&error_of(&dir), &["capture.json", "`format`", "jawtrack-capture/2"]);
+}
+
+#[test]
+fn missing_camera_file() {
+    let (_t, dir) = fresh_capture();
+    std::fs::remove_file(dir.join("cameras/cam1.json")).unwrap();
+    assert_mentions(&error_of(&dir), &["cam1.json", "not found"]);
+}
+
+#[test]
+fn camera_named_without_a_file() {
+    let (_t, dir) = fresh_capture();
+    edit_json(&dir.join("capture.json"), |v| v["cameras"].as_array_mut().unwrap().push("cam9".into()));
+    assert_mentions(&error_of(&dir), &["cameras/cam9.json", "camera file for `cam9`", "not found"]);
+}
+
+#[test]
+fn missing_mesh() {
+    let (_t, dir) = fresh_capture();
+    std::fs::remove_file(dir.join("meshes/lower.obj")).unwrap();
+    assert_mentions(&error_of(&dir), &["meshes/lower.obj", "not found"]);
+}
+
+#[test]
+fn rotation_that_is_not_a_rotation() {
+    let (_t, dir) = fresh_capture();
+    edit_json(&dir.join("cameras/cam0.json"), |v| v["rotation"][0][0] = 1.5.into());
+    assert_mentions(&error_of(&dir), &["cam0.json", "`rotation`", "not a rotation"]);
+    let (_t, dir) = fresh_capture();
+    // A reflection is orthogonal but not a rotation.
+    edit_json(&dir.join("cameras/cam2.json"), |v| {
+        for k in 0..3 {
+            let x = -v["rotation"][2][k].as_f64().unwrap();
+            v["rotation"][2][k] = x.into();
+        }
+    });
+    assert_mentions(&error_of(&dir), &["cam2.json", "`rotation`", "not a rotation"]);
+}
+
+#[test]
+fn non_finite_numbers() {
+    // JSON has no NaN or infinity: they are refused by the parser, with the field named.
+    let (_t, dir) = fresh_capture();
+    let path = dir.join("cameras/cam0.json");
+    let text = std::fs::read_to_string(&path).unwrap().replace("\"fx\": 1030.0", "\"fx\": 1e999");
+    std::fs::write(&path, text).unwrap();
+    assert_mentions(&error_of(&dir), &["cam0.json", "`fx`", "out of range"]);
+    let (_t, dir) = fresh_capture();
+    let path = dir.join("init.json");
+    let text = std::fs::read_to_string(&path).unwrap();
+    let text = text.replacen("\"translation\": [", "\"translation\": [NaN, ", 1);
+    std::fs::write(&path, text).unwrap();
+    assert_mentions(&error_of(&dir), &["init.json", "malformed JSON", "upper"]);
+}
+
+#[test]
+fn focal_length_must_be_positive() {
+    for value in [0.0, -1030.0] {
+        let (_t, dir) = fresh_capture();
+        edit_json(&dir.join("cameras/cam1.json"), |v| v["fy"] = value.into());
+        assert_mentions(&error_of(&dir), &["cam1.json", "`fy`", "must be positive"]);
+    }
+}
+
+#[test]
+fn masks_of_one_camera_with_different_sizes() {
+    let (_t, dir) = fresh_capture();
+    let small = image::GrayImage::new(480, 270);
+    small.save(dir.join("masks/cam2/000004.png")).unwrap();
+    assert_mentions(&error_of(&dir), &["masks/cam2/000004.png", "`size`", "480x270", "960x540"]);
+}
+
+#[test]
+fn mask_that_cannot_be_decoded() {
+    // Garbage: the header read at open fails.
+    let (_t, dir) = fresh_capture();
+    std::fs::write(dir.join("masks/cam0/000003.png"), b"not a png at all").unwrap();
+    assert_mentions(&error_of(&dir), &["masks/cam0/000003.png", "cannot decode"]);
+    // A good header with the data cut off: opening works, reading that frame fails.
+    let (_t, dir) = fresh_capture();
+    let path = dir.join("masks/cam1/000002.png");
+    let bytes = std::fs::read(&path).unwrap();
+    std::fs::write(&path, &bytes[..bytes.len() / 2]).unwrap();
+    let c = Capture::open(&dir).unwrap();
+    let msg = c.load_masks(2).unwrap_err().to_string();
+    assert_mentions(&msg, &["masks/cam1/000002.png", "cannot decode"]);
+    assert!(c.load_masks(1).is_ok());
+}
+
+#[test]
+fn per_arch_masks_must_be_single_channel() {
+    let (_t, dir) = fresh_capture();
+    image::RgbImage::new(960, 540).save(dir.join("masks/cam0/000001.png")).unwrap();
+    let c = Capture::open(&dir).unwrap();
+    assert_mentions(&c.load_masks(1).unwrap_err().to_string(), &["000001.png", "single-channel"]);
+}
+
+fn write_mesh(dir: &Path, text: &str) {
+    std::fs::write(dir.join("meshes/upper.obj"), text).unwrap();
+}
+
+#[test]
+fn mesh_with_no_faces() {
+    let (_t, dir) = fresh_capture();
+    write_mesh(&dir, "v 0 0 0\nv 1 0 0\nv 0 1 0\ng boi\n");
+    assert_mentions(&error_of(&dir), &["upper.obj", "no faces"]);
+}
+
+#[test]
+fn mesh_with_nan_vertices() {
+    let (_t, dir) = fresh_capture();
+    write_mesh(&dir, "v 0 0 0\nv nan 0 0\nv 0 1 0\ng boi\nf 1 2 3\n");
+    assert_mentions(&error_of(&dir), &["upper.obj", "`vertex 1`", "non-finite"]);
+}
+
+#[test]
+fn mesh_with_face_index_out_of_range() {
+    let (_t, dir) = fresh_capture();
+    write_mesh(&dir, "v 0 0 0\nv 1 0 0\nv 0 1 0\ng boi\nf 1 2 3\nf 1 2 9\n");
+    assert_mentions(&error_of(&dir), &["upper.obj", "`face 1`", "vertex 8", "3 vertices"]);
+}
+
+#[test]
+fn boundary_of_interest_missing_or_empty() {
+    let (_t, dir) = fresh_capture();
+    write_mesh(&dir, "v 0 0 0\nv 1 0 0\nv 0 1 0\ng teeth\nf 1 2 3\n");
+    assert_mentions(&error_of(&dir), &["upper.obj", "`boi.group`", "no group, object or material named `boi`"]);
+    let (_t, dir) = fresh_capture();
+    write_mesh(&dir, "v 0 0 0\nv 1 0 0\nv 0 1 0\ng boi\ng teeth\nf 1 2 3\n");
+    assert_mentions(&error_of(&dir), &["upper.obj", "`boi.group`", "has no faces"]);
+}
+
+#[test]
+fn boundary_of_interest_as_face_lists() {
+    let (_t, dir) = fresh_capture();
+    std::fs::write(dir.join("meshes/upper.boi.json"), "[0, 1, 2]").unwrap();
+    std::fs::write(dir.join("meshes/lower.boi.json"), "[5, 100000000]").unwrap();
+    edit_json(&dir.join("capture.json"), |v| {
+        v["boi"] = serde_json::json!({"upper": "meshes/upper.boi.json", "lower": "meshes/lower.boi.json"})
+    });
+    assert_mentions(&error_of(&dir), &["lower.boi.json", "`[1]`", "out of range"]);
+    std::fs::write(dir.join("meshes/lower.boi.json"), "[5, 6]").unwrap();
+    let c = Capture::open(&dir).unwrap();
+    assert_eq!(c.upper.boi_face_count(), 3);
+    assert_eq!(c.lower.boi_face_count(), 2);
+}
+
+#[test]
+fn frame_range_beyond_the_masks() {
+    let (_t, dir) = fresh_capture();
+    edit_json(&dir.join("capture.json"), |v| v["frames"]["count"] = 7.into());
+    assert_mentions(&error_of(&dir), &["capture.json", "`frames`", "0..=6", "frame 5"]);
+}
+
+#[test]
+fn a_missing_mask_is_allowed() {
+    let (_t, dir) = fresh_capture();
+    std::fs::remove_file(dir.join("masks/cam1/000002.png")).unwrap();
+    let c = Capture::open(&dir).unwrap();
+    let m = c.load_masks(2).unwrap();
+    assert!(m.masks[0].is_some() && m.masks[1].is_none() && m.masks[2].is_some());
+}
+
+#[test]
+fn bad_mask_labels() {
+    let (_t, dir) = fresh_capture();
+    edit_json(&dir.join("capture.json"), |v| v["masks"]["lower"] = 85.into());
+    assert_mentions(&error_of(&dir), &["capture.json", "`masks.lower`", "both 85"]);
+    let (_t, dir) = fresh_capture();
+    edit_json(&dir.join("capture.json"), |v| v["masks"]["mode"] = "rgb".into());
+    assert_mentions(&error_of(&dir), &["`masks.mode`", "\"rgb\""]);
+}
+
+#[test]
+fn bootstrap_points_are_checked() {
+    let (_t, dir) = fresh_capture();
+    std::fs::write(
+        dir.join("init.json"),
+        r#"{"upper": {"points": [{"vertex": 1, "pixels": {"cam0": [1, 2], "camX": [3, 4]}},
+                                 {"vertex": 2, "pixels": {"cam0": [1, 2], "cam1": [3, 4]}},
+                                 {"vertex": 3, "pixels": {"cam0": [1, 2], "cam1": [3, 4]}}]},
+            "lower": {"points": []}}"#,
+    )
+    .unwrap();
+    assert_mentions(&error_of(&dir), &["init.json", "`upper.points[0].pixels.camX`", "no camera named"]);
+}
+
+#[test]
+fn the_cli_reports_errors_and_exits_non_zero() {
+    let (_t, dir) = fresh_capture();
+    let exe = env!("CARGO_BIN_EXE_jawtrack");
+    let ok = std::process::Command::new(exe).arg("validate").arg(&dir).output().unwrap();
+    assert!(ok.status.success());
+    let out = String::from_utf8_lossy(&ok.stdout);
+    assert!(out.contains("valid") && out.contains("cam2") && out.contains("ground truth: 6 frames"), "{out}");
+    edit_json(&dir.join("cameras/cam0.json"), |v| v["fx"] = (-5.0).into());
+    let bad = std::process::Command::new(exe).arg("validate").arg(&dir).output().unwrap();
+    assert!(!bad.status.success());
+    let err = String::from_utf8_lossy(&bad.stderr);
+    assert!(err.contains("cam0.json") && err.contains("`fx`") && !err.contains("panicked"), "{err}");
+}
