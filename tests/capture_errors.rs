@@ -39,15 +39,27 @@ fn missing_capture_json() {
 #[test]
 fn malformed_json_names_the_place() {
     let (_t, dir) = fresh_capture();
-    std::fs::write(dir.join("capture.json"), "{\"format\": \"jawtrack-capture/1\", \"cameras\": [\"cam0\",").unwrap();
-    assert_mentions(&error_of(&dir), &["capture.json", "malformed JSON", "cameras"]);
+    std::fs::write(
+        dir.join("capture.json"),
+        "{\"format\": \"jawtrack-capture/1\", \"cameras\": [\"cam0\",",
+    )
+    .unwrap();
+    assert_mentions(
+        &error_of(&dir),
+        &["capture.json", "malformed JSON", "cameras"],
+    );
 }
 
 #[test]
 fn wrong_format() {
     let (_t, dir) = fresh_capture();
-    edit_json(&dir.join("capture.json"), |v| v["format"] = "jawtrack-capture/2".into());
-    assert_mentions(&error_of(&dir), &["capture.json", "`format`", "jawtrack-capture/2"]);
+    edit_json(&dir.join("capture.json"), |v| {
+        v["format"] = "jawtrack-capture/2".into()
+    });
+    assert_mentions(
+        &error_of(&dir),
+        &["capture.json", "`format`", "jawtrack-capture/2"],
+    );
 }
 
 #[test]
@@ -60,8 +72,13 @@ fn missing_camera_file() {
 #[test]
 fn camera_named_without_a_file() {
     let (_t, dir) = fresh_capture();
-    edit_json(&dir.join("capture.json"), |v| v["cameras"].as_array_mut().unwrap().push("cam9".into()));
-    assert_mentions(&error_of(&dir), &["cameras/cam9.json", "camera file for `cam9`", "not found"]);
+    edit_json(&dir.join("capture.json"), |v| {
+        v["cameras"].as_array_mut().unwrap().push("cam9".into())
+    });
+    assert_mentions(
+        &error_of(&dir),
+        &["cameras/cam9.json", "camera file for `cam9`", "not found"],
+    );
 }
 
 #[test]
@@ -74,8 +91,13 @@ fn missing_mesh() {
 #[test]
 fn rotation_that_is_not_a_rotation() {
     let (_t, dir) = fresh_capture();
-    edit_json(&dir.join("cameras/cam0.json"), |v| v["rotation"][0][0] = 1.5.into());
-    assert_mentions(&error_of(&dir), &["cam0.json", "`rotation`", "not a rotation"]);
+    edit_json(&dir.join("cameras/cam0.json"), |v| {
+        v["rotation"][0][0] = 1.5.into()
+    });
+    assert_mentions(
+        &error_of(&dir),
+        &["cam0.json", "`rotation`", "not a rotation"],
+    );
     let (_t, dir) = fresh_capture();
     // A reflection is orthogonal but not a rotation.
     edit_json(&dir.join("cameras/cam2.json"), |v| {
@@ -84,7 +106,10 @@ fn rotation_that_is_not_a_rotation() {
             v["rotation"][2][k] = x.into();
         }
     });
-    assert_mentions(&error_of(&dir), &["cam2.json", "`rotation`", "not a rotation"]);
+    assert_mentions(
+        &error_of(&dir),
+        &["cam2.json", "`rotation`", "not a rotation"],
+    );
 }
 
 #[test]
@@ -92,7 +117,9 @@ fn non_finite_numbers() {
     // JSON has no NaN or infinity: they are refused by the parser, with the field named.
     let (_t, dir) = fresh_capture();
     let path = dir.join("cameras/cam0.json");
-    let text = std::fs::read_to_string(&path).unwrap().replace("\"fx\": 1030.0", "\"fx\": 1e999");
+    let text = std::fs::read_to_string(&path)
+        .unwrap()
+        .replace("\"fx\": 1030.0", "\"fx\": 1e999");
     std::fs::write(&path, text).unwrap();
     assert_mentions(&error_of(&dir), &["cam0.json", "`fx`", "out of range"]);
     let (_t, dir) = fresh_capture();
@@ -117,7 +144,10 @@ fn masks_of_one_camera_with_different_sizes() {
     let (_t, dir) = fresh_capture();
     let small = image::GrayImage::new(480, 270);
     small.save(dir.join("masks/cam2/000004.png")).unwrap();
-    assert_mentions(&error_of(&dir), &["masks/cam2/000004.png", "`size`", "480x270", "960x540"]);
+    assert_mentions(
+        &error_of(&dir),
+        &["masks/cam2/000004.png", "`size`", "480x270", "960x540"],
+    );
 }
 
 #[test]
@@ -140,9 +170,14 @@ fn mask_that_cannot_be_decoded() {
 #[test]
 fn per_arch_masks_must_be_single_channel() {
     let (_t, dir) = fresh_capture();
-    image::RgbImage::new(960, 540).save(dir.join("masks/cam0/000001.png")).unwrap();
+    image::RgbImage::new(960, 540)
+        .save(dir.join("masks/cam0/000001.png"))
+        .unwrap();
     let c = Capture::open(&dir).unwrap();
-    assert_mentions(&c.load_masks(1).unwrap_err().to_string(), &["000001.png", "single-channel"]);
+    assert_mentions(
+        &c.load_masks(1).unwrap_err().to_string(),
+        &["000001.png", "single-channel"],
+    );
 }
 
 fn write_mesh(dir: &Path, text: &str) {
@@ -167,17 +202,30 @@ fn mesh_with_nan_vertices() {
 fn mesh_with_face_index_out_of_range() {
     let (_t, dir) = fresh_capture();
     write_mesh(&dir, "v 0 0 0\nv 1 0 0\nv 0 1 0\ng boi\nf 1 2 3\nf 1 2 9\n");
-    assert_mentions(&error_of(&dir), &["upper.obj", "`face 1`", "vertex 8", "3 vertices"]);
+    assert_mentions(
+        &error_of(&dir),
+        &["upper.obj", "`face 1`", "vertex 8", "3 vertices"],
+    );
 }
 
 #[test]
 fn boundary_of_interest_missing_or_empty() {
     let (_t, dir) = fresh_capture();
     write_mesh(&dir, "v 0 0 0\nv 1 0 0\nv 0 1 0\ng teeth\nf 1 2 3\n");
-    assert_mentions(&error_of(&dir), &["upper.obj", "`boi.group`", "no group, object or material named `boi`"]);
+    assert_mentions(
+        &error_of(&dir),
+        &[
+            "upper.obj",
+            "`boi.group`",
+            "no group, object or material named `boi`",
+        ],
+    );
     let (_t, dir) = fresh_capture();
     write_mesh(&dir, "v 0 0 0\nv 1 0 0\nv 0 1 0\ng boi\ng teeth\nf 1 2 3\n");
-    assert_mentions(&error_of(&dir), &["upper.obj", "`boi.group`", "has no faces"]);
+    assert_mentions(
+        &error_of(&dir),
+        &["upper.obj", "`boi.group`", "has no faces"],
+    );
 }
 
 #[test]
@@ -185,10 +233,16 @@ fn boundary_of_interest_as_face_lists() {
     let (_t, dir) = fresh_capture();
     std::fs::write(dir.join("meshes/upper.boi.json"), "[0, 1, 2]").unwrap();
     std::fs::write(dir.join("meshes/lower.boi.json"), "[5, 100000000]").unwrap();
-    edit_json(&dir.join("capture.json"), |v| {
-        v["boi"] = serde_json::json!({"upper": "meshes/upper.boi.json", "lower": "meshes/lower.boi.json"})
-    });
-    assert_mentions(&error_of(&dir), &["lower.boi.json", "`[1]`", "out of range"]);
+    edit_json(
+        &dir.join("capture.json"),
+        |v| {
+            v["boi"] = serde_json::json!({"upper": "meshes/upper.boi.json", "lower": "meshes/lower.boi.json"})
+        },
+    );
+    assert_mentions(
+        &error_of(&dir),
+        &["lower.boi.json", "`[1]`", "out of range"],
+    );
     std::fs::write(dir.join("meshes/lower.boi.json"), "[5, 6]").unwrap();
     let c = Capture::open(&dir).unwrap();
     assert_eq!(c.upper.boi_face_count(), 3);
@@ -198,8 +252,13 @@ fn boundary_of_interest_as_face_lists() {
 #[test]
 fn frame_range_beyond_the_masks() {
     let (_t, dir) = fresh_capture();
-    edit_json(&dir.join("capture.json"), |v| v["frames"]["count"] = 7.into());
-    assert_mentions(&error_of(&dir), &["capture.json", "`frames`", "0..=6", "frame 5"]);
+    edit_json(&dir.join("capture.json"), |v| {
+        v["frames"]["count"] = 7.into()
+    });
+    assert_mentions(
+        &error_of(&dir),
+        &["capture.json", "`frames`", "0..=6", "frame 5"],
+    );
 }
 
 #[test]
@@ -214,10 +273,17 @@ fn a_missing_mask_is_allowed() {
 #[test]
 fn bad_mask_labels() {
     let (_t, dir) = fresh_capture();
-    edit_json(&dir.join("capture.json"), |v| v["masks"]["lower"] = 85.into());
-    assert_mentions(&error_of(&dir), &["capture.json", "`masks.lower`", "both 85"]);
+    edit_json(&dir.join("capture.json"), |v| {
+        v["masks"]["lower"] = 85.into()
+    });
+    assert_mentions(
+        &error_of(&dir),
+        &["capture.json", "`masks.lower`", "both 85"],
+    );
     let (_t, dir) = fresh_capture();
-    edit_json(&dir.join("capture.json"), |v| v["masks"]["mode"] = "rgb".into());
+    edit_json(&dir.join("capture.json"), |v| {
+        v["masks"]["mode"] = "rgb".into()
+    });
     assert_mentions(&error_of(&dir), &["`masks.mode`", "\"rgb\""]);
 }
 
@@ -232,20 +298,41 @@ fn bootstrap_points_are_checked() {
             "lower": {"points": []}}"#,
     )
     .unwrap();
-    assert_mentions(&error_of(&dir), &["init.json", "`upper.points[0].pixels.camX`", "no camera named"]);
+    assert_mentions(
+        &error_of(&dir),
+        &[
+            "init.json",
+            "`upper.points[0].pixels.camX`",
+            "no camera named",
+        ],
+    );
 }
 
 #[test]
 fn the_cli_reports_errors_and_exits_non_zero() {
     let (_t, dir) = fresh_capture();
     let exe = env!("CARGO_BIN_EXE_jawtrack");
-    let ok = std::process::Command::new(exe).arg("validate").arg(&dir).output().unwrap();
+    let ok = std::process::Command::new(exe)
+        .arg("validate")
+        .arg(&dir)
+        .output()
+        .unwrap();
     assert!(ok.status.success());
     let out = String::from_utf8_lossy(&ok.stdout);
-    assert!(out.contains("valid") && out.contains("cam2") && out.contains("ground truth: 6 frames"), "{out}");
+    assert!(
+        out.contains("valid") && out.contains("cam2") && out.contains("ground truth: 6 frames"),
+        "{out}"
+    );
     edit_json(&dir.join("cameras/cam0.json"), |v| v["fx"] = (-5.0).into());
-    let bad = std::process::Command::new(exe).arg("validate").arg(&dir).output().unwrap();
+    let bad = std::process::Command::new(exe)
+        .arg("validate")
+        .arg(&dir)
+        .output()
+        .unwrap();
     assert!(!bad.status.success());
     let err = String::from_utf8_lossy(&bad.stderr);
-    assert!(err.contains("cam0.json") && err.contains("`fx`") && !err.contains("panicked"), "{err}");
+    assert!(
+        err.contains("cam0.json") && err.contains("`fx`") && !err.contains("panicked"),
+        "{err}"
+    );
 }

@@ -118,11 +118,13 @@ pub fn undistortion_map(camera: &Camera) -> Vec<u32> {
             );
             let src = camera.normalised_to_pixel(n);
             let (su, sv) = (src.x.round(), src.y.round());
-            map.push(if su >= 0.0 && sv >= 0.0 && su < w as f64 && sv < h as f64 {
-                sv as u32 * w + su as u32
-            } else {
-                u32::MAX
-            });
+            map.push(
+                if su >= 0.0 && sv >= 0.0 && su < w as f64 && sv < h as f64 {
+                    sv as u32 * w + su as u32
+                } else {
+                    u32::MAX
+                },
+            );
         }
     }
     map
@@ -134,7 +136,13 @@ pub fn apply_map(mask: &LabelMask, map: &[u32]) -> LabelMask {
         height: mask.height,
         data: map
             .iter()
-            .map(|&i| if i == u32::MAX { 0 } else { mask.data[i as usize] })
+            .map(|&i| {
+                if i == u32::MAX {
+                    0
+                } else {
+                    mask.data[i as usize]
+                }
+            })
             .collect(),
     }
 }

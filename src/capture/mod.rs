@@ -14,7 +14,9 @@ use nalgebra::Vector2;
 
 use crate::error::{Error, Result};
 use crate::geometry::{Camera, Pose, fit_rigid, triangulate};
-use json::{ArchInitJson, BoiJson, CameraJson, CaptureJson, InitJson, TracksJson, check_finite, read_json};
+use json::{
+    ArchInitJson, BoiJson, CameraJson, CaptureJson, InitJson, TracksJson, check_finite, read_json,
+};
 pub use masks::{LOWER_BIT, LabelMask, MaskMode, UPPER_BIT};
 pub use mesh::{BoiSource, Mesh};
 pub use write::{write_atomic, write_json_atomic};
@@ -165,11 +167,19 @@ impl Capture {
             return Err(Error::invalid(
                 &capture_path,
                 "format",
-                format!("expected \"{}\", found \"{}\"", json::CAPTURE_FORMAT, cj.format),
+                format!(
+                    "expected \"{}\", found \"{}\"",
+                    json::CAPTURE_FORMAT,
+                    cj.format
+                ),
             ));
         }
         if cj.cameras.is_empty() {
-            return Err(Error::invalid(&capture_path, "cameras", "no cameras are named"));
+            return Err(Error::invalid(
+                &capture_path,
+                "cameras",
+                "no cameras are named",
+            ));
         }
         for (i, name) in cj.cameras.iter().enumerate() {
             if name.is_empty() || name.contains(['/', '\\']) || name == "." || name == ".." {
@@ -188,7 +198,11 @@ impl Capture {
             }
         }
         if cj.frames.count == 0 {
-            return Err(Error::invalid(&capture_path, "frames.count", "must be at least 1"));
+            return Err(Error::invalid(
+                &capture_path,
+                "frames.count",
+                "must be at least 1",
+            ));
         }
         let mask_mode = match cj.masks.mode.as_str() {
             "per-arch" => {
@@ -259,7 +273,9 @@ impl Capture {
         }
 
         let (upper_boi, lower_boi) = match &cj.boi {
-            BoiJson::Group { group } => (BoiRef::Group(group.clone()), BoiRef::Group(group.clone())),
+            BoiJson::Group { group } => {
+                (BoiRef::Group(group.clone()), BoiRef::Group(group.clone()))
+            }
             BoiJson::FaceLists { upper, lower } => {
                 (BoiRef::List(dir.join(upper)), BoiRef::List(dir.join(lower)))
             }
@@ -310,7 +326,10 @@ impl Capture {
     }
 
     pub fn camera_names(&self) -> Vec<&str> {
-        self.cameras.iter().map(|c| c.calibrated.name.as_str()).collect()
+        self.cameras
+            .iter()
+            .map(|c| c.calibrated.name.as_str())
+            .collect()
     }
 
     pub fn frames(&self) -> std::ops::Range<u32> {
@@ -340,7 +359,9 @@ impl Capture {
             }
             let path = self.mask_path(i, frame);
             let mask = masks::decode_mask(&path, self.mask_mode)?;
-            let expected = cam.mask_size.expect("a camera with mask files has a mask size");
+            let expected = cam
+                .mask_size
+                .expect("a camera with mask files has a mask size");
             if (mask.width, mask.height) != expected {
                 return Err(Error::invalid(
                     &path,
@@ -385,10 +406,18 @@ impl Capture {
                             .map(|(c, px)| (&self.cameras[*c].calibrated, *px))
                             .collect();
                         let x = triangulate(&views).map_err(|e| {
-                            Error::invalid(&init_path, format!("{}.points[{k}]", arch.name()), e.to_string())
+                            Error::invalid(
+                                &init_path,
+                                format!("{}.points[{k}]", arch.name()),
+                                e.to_string(),
+                            )
                         })?;
                         let v = mesh.positions[p.vertex as usize];
-                        model.push(nalgebra::Vector3::new(v[0] as f64, v[1] as f64, v[2] as f64));
+                        model.push(nalgebra::Vector3::new(
+                            v[0] as f64,
+                            v[1] as f64,
+                            v[2] as f64,
+                        ));
                         world.push(x);
                     }
                     fit_rigid(&model, &world).map_err(|e| {
@@ -424,7 +453,10 @@ impl Capture {
                         return Err(Error::invalid(
                             path,
                             format!("{field}.points"),
-                            format!("a rigid bootstrap needs at least three points, found {}", points.len()),
+                            format!(
+                                "a rigid bootstrap needs at least three points, found {}",
+                                points.len()
+                            ),
                         ));
                     }
                     let nv = self.mesh(arch).positions.len();
@@ -435,7 +467,10 @@ impl Capture {
                             return Err(Error::invalid(
                                 path,
                                 format!("{f}.vertex"),
-                                format!("vertex {} is out of range (the {field} mesh has {nv} vertices)", p.vertex),
+                                format!(
+                                    "vertex {} is out of range (the {field} mesh has {nv} vertices)",
+                                    p.vertex
+                                ),
                             ));
                         }
                         if p.pixels.len() < 2 {
@@ -507,7 +542,10 @@ pub fn read_camera(path: &Path, name: &str) -> Result<Camera> {
             return Err(Error::invalid(
                 path,
                 "distortion",
-                format!("expected [k1, k2, p1, p2] or [k1, k2, p1, p2, k3], found {} values", d.len()),
+                format!(
+                    "expected [k1, k2, p1, p2] or [k1, k2, p1, p2, k3], found {} values",
+                    d.len()
+                ),
             ));
         }
         distortion[..d.len()].copy_from_slice(d);
@@ -519,7 +557,11 @@ pub fn read_camera(path: &Path, name: &str) -> Result<Camera> {
     .to_pose(path, "extrinsics")
     .map_err(|e| match e {
         // The camera file keeps rotation/translation at the top level.
-        Error::Invalid { path, field, problem } => Error::Invalid {
+        Error::Invalid {
+            path,
+            field,
+            problem,
+        } => Error::Invalid {
             path,
             field: field.trim_start_matches("extrinsics.").to_string(),
             problem,
@@ -540,7 +582,10 @@ pub fn read_camera(path: &Path, name: &str) -> Result<Camera> {
 }
 
 /// List a camera's mask files and check that they share one size (headers only).
-fn scan_masks(cam_dir: &Path) -> Result<(Option<(u32, u32)>, BTreeSet<u32>)> {
+/// What a camera's mask folder holds: the masks' common size and the frames present.
+type MaskScan = (Option<(u32, u32)>, BTreeSet<u32>);
+
+fn scan_masks(cam_dir: &Path) -> Result<MaskScan> {
     let mut frames = BTreeSet::new();
     let entries = match std::fs::read_dir(cam_dir) {
         Ok(e) => e,

@@ -35,7 +35,9 @@ pub fn run(a: Args) -> anyhow::Result<()> {
         meshes: None,
         force,
     };
-    println!("== 1. synthesise a realistic capture (three cameras, half-resolution masks, lips, noise)");
+    println!(
+        "== 1. synthesise a realistic capture (three cameras, half-resolution masks, lips, noise)"
+    );
     let report = super::synth::generate(&out, &opts)?;
     super::synth::print_report(&out, &report);
 
@@ -50,12 +52,16 @@ pub fn run(a: Args) -> anyhow::Result<()> {
     let mut engine = CpuEnergy::new(Scene::from_capture(&capture));
     engine.set_frame(&capture.load_masks(frame)?)?;
     println!("at the true poses:");
-    println!("arch   camera  mask_px  uncovered  boi_outside  total      off/none off/body off/boi on/none on/body on/boi");
+    println!(
+        "arch   camera  mask_px  uncovered  boi_outside  total      off/none off/body off/boi on/none on/body on/boi"
+    );
     for arch in Arch::BOTH {
         let e = engine.evaluate(arch, &[truth])?.remove(0);
         super::energy::print_energy(arch, &capture.camera_names(), &e, DEFAULT_LAMBDA);
     }
-    println!("\neach of the 6 pose parameters moved by ±0.5 mm or ±0.5° (12 candidates per arch, one batch):");
+    println!(
+        "\neach of the 6 pose parameters moved by ±0.5 mm or ±0.5° (12 candidates per arch, one batch):"
+    );
     println!("arch   E(truth)  lowest E moved  highest E moved");
     for arch in Arch::BOTH {
         let candidates: Vec<ArchPoses> = (0..12)
@@ -68,11 +74,22 @@ pub fn run(a: Args) -> anyhow::Result<()> {
             .collect();
         let at_truth = engine.evaluate(arch, &[truth])?[0].total(DEFAULT_LAMBDA);
         let started = Instant::now();
-        let moved: Vec<f64> = engine.evaluate(arch, &candidates)?.iter().map(|e| e.total(DEFAULT_LAMBDA)).collect();
+        let moved: Vec<f64> = engine
+            .evaluate(arch, &candidates)?
+            .iter()
+            .map(|e| e.total(DEFAULT_LAMBDA))
+            .collect();
         let per_eval_ms = started.elapsed().as_secs_f64() * 1e3 / candidates.len() as f64;
         let lo = moved.iter().copied().fold(f64::INFINITY, f64::min);
         let hi = moved.iter().copied().fold(f64::NEG_INFINITY, f64::max);
-        println!("{:<6} {:>8.1}  {:>14.1}  {:>15.1}   ({per_eval_ms:.2} ms per evaluation, {})", arch.name(), at_truth, lo, hi, engine.name());
+        println!(
+            "{:<6} {:>8.1}  {:>14.1}  {:>15.1}   ({per_eval_ms:.2} ms per evaluation, {})",
+            arch.name(),
+            at_truth,
+            lo,
+            hi,
+            engine.name()
+        );
     }
     println!("\nthe capture is in {}", out.display());
     println!("not built yet: tracking (`jawtrack track`), the GPU energy engine and the jaw rig.");

@@ -28,8 +28,13 @@ pub struct Args {
 }
 
 pub fn run(a: Args) -> anyhow::Result<()> {
-    let capture = Capture::open_with(&a.capture, OpenOptions { max_triangles: a.max_triangles })
-        .with_context(|| format!("invalid capture {}", a.capture.display()))?;
+    let capture = Capture::open_with(
+        &a.capture,
+        OpenOptions {
+            max_triangles: a.max_triangles,
+        },
+    )
+    .with_context(|| format!("invalid capture {}", a.capture.display()))?;
     if !capture.frames().contains(&a.frame) {
         return Err(anyhow!(
             "--frame {}: the capture has frames {}..{}",
@@ -61,11 +66,17 @@ pub fn run(a: Args) -> anyhow::Result<()> {
     engine.set_frame(&capture.load_masks(a.frame)?)?;
     eprintln!("backend: {}", engine.name());
     println!("frame {}  lambda {}", a.frame, a.lambda);
-    println!("arch   camera  mask_px  uncovered  boi_outside  total      off/none off/body off/boi on/none on/body on/boi");
+    println!(
+        "arch   camera  mask_px  uncovered  boi_outside  total      off/none off/body off/boi on/none on/body on/boi"
+    );
     for arch in Arch::BOTH {
         let started = Instant::now();
         let e = engine.evaluate(arch, &[poses])?.remove(0);
-        eprintln!("{} arch: evaluated in {:.2} ms", arch.name(), started.elapsed().as_secs_f64() * 1e3);
+        eprintln!(
+            "{} arch: evaluated in {:.2} ms",
+            arch.name(),
+            started.elapsed().as_secs_f64() * 1e3
+        );
         print_energy(arch, &capture.camera_names(), &e, a.lambda);
     }
     Ok(())
@@ -73,9 +84,11 @@ pub fn run(a: Args) -> anyhow::Result<()> {
 
 /// Ground truth for the frame, else init.json's poses for the first frame.
 pub fn default_poses(capture: &Capture, frame: u32) -> Option<ArchPoses> {
-    capture
-        .gt_poses(frame)
-        .or_else(|| (frame == capture.first_frame).then(|| capture.initial_poses().ok()).flatten())
+    capture.gt_poses(frame).or_else(|| {
+        (frame == capture.first_frame)
+            .then(|| capture.initial_poses().ok())
+            .flatten()
+    })
 }
 
 pub fn print_energy(arch: Arch, cameras: &[&str], e: &Energy, lambda: f64) {

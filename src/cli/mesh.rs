@@ -41,7 +41,11 @@ fn boi(a: BoiArgs) -> anyhow::Result<()> {
     let upper = match a.arch.as_deref() {
         Some(arch) => arch == "upper",
         None => {
-            let name = a.input.file_name().map(|n| n.to_string_lossy().to_lowercase()).unwrap_or_default();
+            let name = a
+                .input
+                .file_name()
+                .map(|n| n.to_string_lossy().to_lowercase())
+                .unwrap_or_default();
             match (name.contains("upper"), name.contains("lower")) {
                 (true, false) => true,
                 (false, true) => false,
@@ -62,7 +66,10 @@ fn boi(a: BoiArgs) -> anyhow::Result<()> {
     }
     let n = mark_boi(&mut mesh, &marking);
     if n == 0 {
-        bail!("{}: no face was marked; is the mesh in the scan frame (y up, +z anterior)?", a.input.display());
+        bail!(
+            "{}: no face was marked; is the mesh in the scan frame (y up, +z anterior)?",
+            a.input.display()
+        );
     }
     if let Some(max) = a.max_triangles {
         mesh = mesh.simplified(max);

@@ -58,16 +58,27 @@ pub fn generate(out: &Path, opts: &SynthOptions) -> anyhow::Result<SynthReport> 
 }
 
 pub fn print_report(out: &Path, r: &SynthReport) {
-    println!("wrote {} ({} frames in {:.2} s)", out.display(), r.frames, r.seconds);
+    println!(
+        "wrote {} ({} frames in {:.2} s)",
+        out.display(),
+        r.frames,
+        r.seconds
+    );
     println!(
         "meshes: upper {} triangles ({} BOI), lower {} ({} BOI)",
         r.triangles[0], r.boi_triangles[0], r.triangles[1], r.boi_triangles[1]
     );
     println!(
         "motion: opening up to {:.1} mm, lateral {:.1} to {:.1} mm, protrusion up to {:.1} mm, condylar travel up to {:.1} mm",
-        r.max_opening_mm, r.lateral_mm[0], r.lateral_mm[1], r.max_protrusion_mm, r.max_condylar_travel_mm
+        r.max_opening_mm,
+        r.lateral_mm[0],
+        r.lateral_mm[1],
+        r.max_protrusion_mm,
+        r.max_condylar_travel_mm
     );
-    println!("camera  mask size  frames with mask  mean mask px (upper, lower)  visible share (upper, lower)");
+    println!(
+        "camera  mask size  frames with mask  mean mask px (upper, lower)  visible share (upper, lower)"
+    );
     for c in &r.cameras {
         println!(
             "{:<6}  {}x{}    {:>5}             {:>7.0} {:>7.0}             {:>5.1}% {:>5.1}%",

@@ -20,7 +20,8 @@ pub fn run(a: Args) -> anyhow::Result<()> {
 
 /// Open a capture and (optionally) decode every mask of every frame.
 pub fn open_and_check(dir: &Path, decode_all: bool) -> anyhow::Result<Capture> {
-    let capture = Capture::open(dir).with_context(|| format!("invalid capture {}", dir.display()))?;
+    let capture =
+        Capture::open(dir).with_context(|| format!("invalid capture {}", dir.display()))?;
     if decode_all {
         let bar = super::progress_bar(capture.frame_count as u64, "decoding masks");
         for frame in capture.frames() {
@@ -37,7 +38,10 @@ pub fn open_and_check(dir: &Path, decode_all: bool) -> anyhow::Result<Capture> {
 pub fn print_summary(c: &Capture) {
     println!("capture {}: valid", c.dir.display());
     let last = c.first_frame + c.frame_count - 1;
-    println!("frames {}..={} ({}), masks {:?}", c.first_frame, last, c.frame_count, c.mask_mode);
+    println!(
+        "frames {}..={} ({}), masks {:?}",
+        c.first_frame, last, c.frame_count, c.mask_mode
+    );
     println!("camera  image      mask       masks found  distortion");
     for cam in &c.cameras {
         let k = &cam.calibrated;
@@ -47,10 +51,16 @@ pub fn print_summary(c: &Capture) {
             k.name,
             k.width,
             k.height,
-            cam.mask_size.map(|(w, h)| format!("{w}x{h}")).unwrap_or_else(|| "none".into()),
+            cam.mask_size
+                .map(|(w, h)| format!("{w}x{h}"))
+                .unwrap_or_else(|| "none".into()),
             in_range,
             c.frame_count,
-            if k.has_distortion() { "yes (masks undistorted at load)" } else { "no" }
+            if k.has_distortion() {
+                "yes (masks undistorted at load)"
+            } else {
+                "no"
+            }
         );
     }
     let describe = |name: &str, m: &jawtrack::capture::Mesh| {
@@ -77,7 +87,11 @@ pub fn print_summary(c: &Capture) {
                 ArchInit::Pose(_) => "pose".to_string(),
                 ArchInit::Points(p) => format!("{} bootstrap points", p.len()),
             };
-            println!("init.json: upper {}, lower {}", kind(&init.upper), kind(&init.lower));
+            println!(
+                "init.json: upper {}, lower {}",
+                kind(&init.upper),
+                kind(&init.lower)
+            );
         }
     }
     match &c.gt {

@@ -49,7 +49,8 @@ impl CpuEnergy {
     }
 
     fn camera_counts(&self, cam_index: usize, arch: Arch, poses: &ArchPoses) -> Counts {
-        let (Some(cam), Some(prep)) = (&self.scene.cameras[cam_index], &self.frame[cam_index]) else {
+        let (Some(cam), Some(prep)) = (&self.scene.cameras[cam_index], &self.frame[cam_index])
+        else {
             return Counts::default();
         };
         SCRATCH.with(|s| {
@@ -67,14 +68,25 @@ fn render(scene: &Scene, cam: &Camera, arch: Arch, poses: &ArchPoses, s: &mut Sc
     let other = scene.mesh(arch.other());
     let cam_from = |p: &crate::geometry::Pose| cam.camera_from_world.compose(p);
     raster::to_camera_space(mesh, &cam_from(poses.get(arch)), &mut s.points);
-    raster::to_camera_space(other, &cam_from(poses.get(arch.other())), &mut s.other_points);
+    raster::to_camera_space(
+        other,
+        &cam_from(poses.get(arch.other())),
+        &mut s.other_points,
+    );
     let other_class = scene.other_arch_class();
     let mut rect = raster::footprint(cam, &s.points);
     if other_class != raster::CLASS_NONE {
         rect = rect.union(&raster::footprint(cam, &s.other_points));
     }
     s.target.reset(rect);
-    raster::rasterise(cam, other, &s.other_points, other_class, other_class, &mut s.target);
+    raster::rasterise(
+        cam,
+        other,
+        &s.other_points,
+        other_class,
+        other_class,
+        &mut s.target,
+    );
     raster::rasterise(cam, mesh, &s.points, CLASS_BODY, CLASS_BOI, &mut s.target);
 }
 
@@ -113,7 +125,10 @@ impl EnergyEngine for CpuEnergy {
             .iter()
             .map(|m| {
                 m.as_ref().map(|mask| PreparedMask {
-                    totals: [mask.count(Arch::Upper.mask_bit()), mask.count(Arch::Lower.mask_bit())],
+                    totals: [
+                        mask.count(Arch::Upper.mask_bit()),
+                        mask.count(Arch::Lower.mask_bit()),
+                    ],
                     mask: mask.clone(),
                 })
             })
@@ -186,7 +201,8 @@ mod tests {
         let mut data = vec![0u8; 100 * 80];
         for y in y0..y1 {
             for x in x0..x1 {
-                data[(y * 100 + x) as usize] = crate::capture::UPPER_BIT | if mode == MaskMode::Combined { 2 } else { 0 };
+                data[(y * 100 + x) as usize] =
+                    crate::capture::UPPER_BIT | if mode == MaskMode::Combined { 2 } else { 0 };
             }
         }
         let mut e = CpuEnergy::new(Scene {
@@ -239,7 +255,9 @@ mod tests {
     fn moving_the_model_one_pixel_changes_the_counts_exactly() {
         // 1 mm at 100 mm with f = 100 px is exactly one pixel.
         let e = engine((40, 30, 60, 50), PER_ARCH);
-        let es = e.evaluate(Arch::Upper, &[at_depth(0.0), at_depth(1.0), at_depth(-3.0)]).unwrap();
+        let es = e
+            .evaluate(Arch::Upper, &[at_depth(0.0), at_depth(1.0), at_depth(-3.0)])
+            .unwrap();
         assert_eq!(es[0].uncovered(), 0);
         assert_eq!(es[0].boi_outside(), 0);
         assert_eq!(es[1].uncovered(), 20);
@@ -265,7 +283,10 @@ mod tests {
         // columns 50..70: nothing of the mask is left but a sliver from the depth difference.
         assert!(en.uncovered() < 30, "{:?}", en);
         let alone = engine((40, 30, 70, 50), MaskMode::Combined);
-        assert_eq!(alone.evaluate(Arch::Upper, &[poses]).unwrap()[0].uncovered(), 200);
+        assert_eq!(
+            alone.evaluate(Arch::Upper, &[poses]).unwrap()[0].uncovered(),
+            200
+        );
     }
 
     #[test]

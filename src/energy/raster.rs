@@ -89,8 +89,14 @@ impl Target {
 pub fn to_camera_space(mesh: &Mesh, camera_from_model: &Pose, out: &mut Vec<[f32; 3]>) {
     let r = camera_from_model.rotation.matrix();
     let t = camera_from_model.translation;
-    let m: [[f32; 4]; 3] =
-        std::array::from_fn(|i| [r[(i, 0)] as f32, r[(i, 1)] as f32, r[(i, 2)] as f32, t[i] as f32]);
+    let m: [[f32; 4]; 3] = std::array::from_fn(|i| {
+        [
+            r[(i, 0)] as f32,
+            r[(i, 1)] as f32,
+            r[(i, 2)] as f32,
+            t[i] as f32,
+        ]
+    });
     out.clear();
     out.extend(mesh.positions.iter().map(|p| {
         std::array::from_fn(|i| m[i][0] * p[0] + m[i][1] * p[1] + m[i][2] * p[2] + m[i][3])
@@ -222,9 +228,18 @@ fn is_top_left(dx: i64, dy: i64) -> bool {
     (dy == 0 && dx > 0) || dy < 0
 }
 
-fn raster_triangle(proj: &Projector, v: &[[f32; 3]; 3], class: u8, rect: Rect, target: &mut Target) {
-    let (Some(mut a), Some(mut b), Some(c)) = (proj.project(&v[0]), proj.project(&v[1]), proj.project(&v[2]))
-    else {
+fn raster_triangle(
+    proj: &Projector,
+    v: &[[f32; 3]; 3],
+    class: u8,
+    rect: Rect,
+    target: &mut Target,
+) {
+    let (Some(mut a), Some(mut b), Some(c)) = (
+        proj.project(&v[0]),
+        proj.project(&v[1]),
+        proj.project(&v[2]),
+    ) else {
         return;
     };
     let mut area = (b.0 - a.0) * (c.1 - a.1) - (b.1 - a.1) * (c.0 - a.0);
@@ -247,7 +262,13 @@ fn raster_triangle(proj: &Projector, v: &[[f32; 3]; 3], class: u8, rect: Rect, t
     }
     // Edge e_k is opposite vertex k: e0 = b→c, e1 = c→a, e2 = a→b.
     let edges = [(b, c), (c, a), (a, b)];
-    let bias: [i64; 3] = edges.map(|(p, q)| if is_top_left(q.0 - p.0, q.1 - p.1) { 0 } else { -1 });
+    let bias: [i64; 3] = edges.map(|(p, q)| {
+        if is_top_left(q.0 - p.0, q.1 - p.1) {
+            0
+        } else {
+            -1
+        }
+    });
     let sx0 = px0 * (1 << SUBPIXEL_BITS) + HALF_PIXEL;
     let sy0 = py0 * (1 << SUBPIXEL_BITS) + HALF_PIXEL;
     let edge_at = |(p, q): ((i64, i64, f32), (i64, i64, f32)), x: i64, y: i64| {
@@ -264,7 +285,8 @@ fn raster_triangle(proj: &Projector, v: &[[f32; 3]; 3], class: u8, rect: Rect, t
         let base = (py - rect.y0 as i64) as usize * width;
         for px in px0..=px1 {
             if w[0] + bias[0] >= 0 && w[1] + bias[1] >= 0 && w[2] + bias[2] >= 0 {
-                let inv_z = (w[0] as f32 * iz[0] + w[1] as f32 * iz[1] + w[2] as f32 * iz[2]) * inv_area;
+                let inv_z =
+                    (w[0] as f32 * iz[0] + w[1] as f32 * iz[1] + w[2] as f32 * iz[2]) * inv_area;
                 let i = base + (px - rect.x0 as i64) as usize;
                 if inv_z > target.inv_depth[i] {
                     target.inv_depth[i] = inv_z;
@@ -288,7 +310,11 @@ pub fn render_labels(cam: &Camera, items: &[(&Mesh, &Pose, u8)]) -> Vec<u8> {
     let mut target = Target::default();
     target.reset(Rect::full(cam.width, cam.height));
     for (mesh, world_from_model, label) in items {
-        to_camera_space(mesh, &cam.camera_from_world.compose(world_from_model), &mut points);
+        to_camera_space(
+            mesh,
+            &cam.camera_from_world.compose(world_from_model),
+            &mut points,
+        );
         rasterise(cam, mesh, &points, *label, *label, &mut target);
     }
     target.class
@@ -340,7 +366,11 @@ mod tests {
         // columns/rows are in, right and bottom are out: 20 x 20 pixels, the shared diagonal
         // counted once.
         let cam = camera(100, 80, 50.0, 40.0);
-        let t = render(&cam, &square(-10.0, -10.0, 10.0, 10.0, 100.0), &Pose::IDENTITY);
+        let t = render(
+            &cam,
+            &square(-10.0, -10.0, 10.0, 10.0, 100.0),
+            &Pose::IDENTITY,
+        );
         assert_eq!(count(&t, CLASS_BODY), 400);
         let at = |x: usize, y: usize| t.class[y * 100 + x];
         assert_eq!(at(40, 30), CLASS_BODY);
@@ -372,7 +402,8 @@ mod tests {
         let mut both = back.clone();
         let n = both.positions.len() as u32;
         both.positions.extend(&front.positions);
-        both.triangles.extend(front.triangles.iter().map(|t| t.map(|i| i + n)));
+        both.triangles
+            .extend(front.triangles.iter().map(|t| t.map(|i| i + n)));
         both.boi.extend(&front.boi);
         let t = render(&cam, &both, &Pose::IDENTITY);
         assert_eq!(count(&t, CLASS_BOI), 400);

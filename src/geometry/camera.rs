@@ -158,10 +158,16 @@ mod tests {
     #[test]
     fn principal_point_projects_from_optical_axis() {
         let cam = test_camera();
-        let on_axis = cam.camera_from_world.inverse().transform_point(&Vector3::new(0.0, 0.0, 50.0));
+        let on_axis = cam
+            .camera_from_world
+            .inverse()
+            .transform_point(&Vector3::new(0.0, 0.0, 50.0));
         let px = cam.project(&on_axis).unwrap();
         assert!((px - Vector2::new(cam.cx, cam.cy)).norm() < 1e-9);
-        let behind = cam.camera_from_world.inverse().transform_point(&Vector3::new(0.0, 0.0, -5.0));
+        let behind = cam
+            .camera_from_world
+            .inverse()
+            .transform_point(&Vector3::new(0.0, 0.0, -5.0));
         assert!(cam.project(&behind).is_none());
     }
 }

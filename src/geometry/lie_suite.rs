@@ -31,10 +31,19 @@ pub fn group_axiom_suite<G: LieGroup>() {
             "{name}: log(exp({xi:?})) = {back:?}"
         );
         // exp(log(g)) = g
-        assert!(G::exp(&back).distance(g) < tol, "{name}: exp(log(g)) != g for {xi:?}");
+        assert!(
+            G::exp(&back).distance(g) < tol,
+            "{name}: exp(log(g)) != g for {xi:?}"
+        );
         // identity and inverse
-        assert!(g.compose(&G::identity()).distance(g) < tol, "{name}: g·e != g");
-        assert!(G::identity().compose(g).distance(g) < tol, "{name}: e·g != g");
+        assert!(
+            g.compose(&G::identity()).distance(g) < tol,
+            "{name}: g·e != g"
+        );
+        assert!(
+            G::identity().compose(g).distance(g) < tol,
+            "{name}: e·g != g"
+        );
         assert!(
             g.compose(&g.inverse()).distance(&G::identity()) < tol,
             "{name}: g·g⁻¹ != e for {xi:?}"

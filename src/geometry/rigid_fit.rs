@@ -31,7 +31,10 @@ pub fn fit_rigid(a: &[Vector3<f64>], b: &[Vector3<f64>]) -> Result<Pose, RigidFi
         .map(|(p, q)| (q - cb) * (p - ca).transpose())
         .sum();
     let svd = h.svd(true, true);
-    let (u, vt) = (svd.u.ok_or(RigidFitError::Degenerate)?, svd.v_t.ok_or(RigidFitError::Degenerate)?);
+    let (u, vt) = (
+        svd.u.ok_or(RigidFitError::Degenerate)?,
+        svd.v_t.ok_or(RigidFitError::Degenerate)?,
+    );
     let s = svd.singular_values;
     let mut sorted = [s[0], s[1], s[2]];
     sorted.sort_by(f64::total_cmp);
@@ -67,6 +70,9 @@ mod tests {
     fn rejects_collinear_and_short_input() {
         let a = vec![Vector3::zeros(), Vector3::x(), Vector3::x() * 2.0];
         assert_eq!(fit_rigid(&a, &a).unwrap_err(), RigidFitError::Degenerate);
-        assert_eq!(fit_rigid(&a[..2], &a[..2]).unwrap_err(), RigidFitError::TooFewPoints(2));
+        assert_eq!(
+            fit_rigid(&a[..2], &a[..2]).unwrap_err(),
+            RigidFitError::TooFewPoints(2)
+        );
     }
 }

@@ -15,7 +15,11 @@ pub fn hat(w: &Vector3<f64>) -> Matrix3<f64> {
 
 /// Inverse of [`hat`] for the antisymmetric part of `m`.
 fn vee_antisym(m: &Matrix3<f64>) -> Vector3<f64> {
-    Vector3::new(m[(2, 1)] - m[(1, 2)], m[(0, 2)] - m[(2, 0)], m[(1, 0)] - m[(0, 1)]) * 0.5
+    Vector3::new(
+        m[(2, 1)] - m[(1, 2)],
+        m[(0, 2)] - m[(2, 0)],
+        m[(1, 0)] - m[(0, 1)],
+    ) * 0.5
 }
 
 /// SO(3) exponential: axis-angle vector to rotation (Rodrigues).
@@ -201,7 +205,9 @@ impl Pose {
     pub fn rotation_from_rows(rows: &[[f64; 3]; 3], tol: f64) -> Option<Rotation3<f64>> {
         let m = Matrix3::from_fn(|i, j| rows[i][j]);
         let err = (m.transpose() * m - Matrix3::identity()).abs().max();
-        if !(err <= tol) || !((m.determinant() - 1.0).abs() <= tol * 3.0) {
+        // Written so that NaN fails too.
+        let is_rotation = err <= tol && (m.determinant() - 1.0).abs() <= tol * 3.0;
+        if !is_rotation {
             return None;
         }
         let svd = m.svd(true, true);
@@ -277,7 +283,14 @@ mod tests {
                 Vector6::new(1e-5, 0.0, 3e-6, -4.0, 0.5, 9.0),
                 Vector6::new(0.3, -0.2, 0.1, 10.0, -5.0, 2.0),
                 Vector6::new(0.0, 0.0, pi - 1e-7, 1.0, 1.0, 1.0),
-                Vector6::new(0.0, (pi - 1e-3) / 2f64.sqrt(), (pi - 1e-3) / 2f64.sqrt(), 0.0, 3.0, -1.0),
+                Vector6::new(
+                    0.0,
+                    (pi - 1e-3) / 2f64.sqrt(),
+                    (pi - 1e-3) / 2f64.sqrt(),
+                    0.0,
+                    3.0,
+                    -1.0,
+                ),
                 Vector6::new(1.2, 0.5, -0.7, 0.0, 0.0, -20.0),
             ];
             let n = Vector3::new(1.0, 2.0, -2.0).normalize() * (pi - 1e-10);
@@ -333,9 +346,17 @@ mod tests {
 
     #[test]
     fn rotation_from_rows_rejects_non_rotations_and_reorthonormalises() {
-        assert!(Pose::rotation_from_rows(&[[1.0, 0.0, 0.0], [0.0, 1.0, 0.0], [0.0, 0.0, -1.0]], 1e-3).is_none());
-        assert!(Pose::rotation_from_rows(&[[2.0, 0.0, 0.0], [0.0, 1.0, 0.0], [0.0, 0.0, 1.0]], 1e-3).is_none());
-        let r = Pose::rotation_from_rows(&[[1.0, 2e-4, 0.0], [0.0, 1.0, 0.0], [0.0, 0.0, 1.0]], 1e-3).unwrap();
+        assert!(
+            Pose::rotation_from_rows(&[[1.0, 0.0, 0.0], [0.0, 1.0, 0.0], [0.0, 0.0, -1.0]], 1e-3)
+                .is_none()
+        );
+        assert!(
+            Pose::rotation_from_rows(&[[2.0, 0.0, 0.0], [0.0, 1.0, 0.0], [0.0, 0.0, 1.0]], 1e-3)
+                .is_none()
+        );
+        let r =
+            Pose::rotation_from_rows(&[[1.0, 2e-4, 0.0], [0.0, 1.0, 0.0], [0.0, 0.0, 1.0]], 1e-3)
+                .unwrap();
         let m = r.matrix();
         assert!((m.transpose() * m - Matrix3::identity()).abs().max() < 1e-12);
     }

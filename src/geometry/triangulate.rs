@@ -73,7 +73,10 @@ mod tests {
         let views: Vec<_> = cams.iter().map(|c| (c, c.project(&x).unwrap())).collect();
         let got = triangulate(&views).unwrap();
         assert!((got - x).norm() < 1e-6, "{got:?}");
-        let with_noise: Vec<_> = views.iter().map(|(c, p)| (*c, p + Vector2::new(0.3, -0.2))).collect();
+        let with_noise: Vec<_> = views
+            .iter()
+            .map(|(c, p)| (*c, p + Vector2::new(0.3, -0.2)))
+            .collect();
         assert!((triangulate(&with_noise).unwrap() - x).norm() < 0.5);
     }
 

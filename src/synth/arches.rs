@@ -75,7 +75,10 @@ impl ArchCurve {
         }
         let (x, z) = self.point(phi);
         // Tangent direction (towards increasing |s|).
-        let (tx, tz) = (self.a * phi.cos() * dphi.signum(), -self.b * phi.sin() * dphi.signum());
+        let (tx, tz) = (
+            self.a * phi.cos() * dphi.signum(),
+            -self.b * phi.sin() * dphi.signum(),
+        );
         let n = (tx * tx + tz * tz).sqrt();
         (x, z, (tx / n).atan2(tz / n))
     }
@@ -147,14 +150,22 @@ fn add_crown(mesh: &mut Mesh, t: &Tooth, x: f64, z: f64, heading: f64, upper: bo
             } else {
                 0.0
             };
-            let p = centre + along * (half_w * cx) + out * (half_d * sz) + Vector3::new(0.0, y + cusp, 0.0);
+            let p = centre
+                + along * (half_w * cx)
+                + out * (half_d * sz)
+                + Vector3::new(0.0, y + cusp, 0.0);
             mesh.positions.push([p.x as f32, p.y as f32, p.z as f32]);
         }
     }
     let ring = |r: usize, k: usize| base + (r * SEGMENTS + k % SEGMENTS) as u32;
     for r in 0..RINGS {
         for k in 0..SEGMENTS {
-            let (a, b, c, d) = (ring(r, k), ring(r, k + 1), ring(r + 1, k + 1), ring(r + 1, k));
+            let (a, b, c, d) = (
+                ring(r, k),
+                ring(r, k + 1),
+                ring(r + 1, k + 1),
+                ring(r + 1, k),
+            );
             mesh.triangles.push([a, b, c]);
             mesh.triangles.push([a, c, d]);
         }
@@ -183,7 +194,9 @@ pub fn rest_bite(upper: &Mesh, lower: &Mesh) -> Pose {
     let cell = |x: f64, z: f64| ((x.floor() as i64), (z.floor() as i64));
     let mut upper_low = std::collections::HashMap::new();
     for p in &upper.positions {
-        let e = upper_low.entry(cell(p[0] as f64, p[2] as f64)).or_insert(f64::INFINITY);
+        let e = upper_low
+            .entry(cell(p[0] as f64, p[2] as f64))
+            .or_insert(f64::INFINITY);
         *e = f64::min(*e, p[1] as f64);
     }
     let mut gap = f64::INFINITY;
@@ -211,12 +224,18 @@ mod tests {
             assert_eq!(m.triangles.len(), 14 * per_crown);
             m.validate(std::path::Path::new("procedural")).unwrap();
             let (lo, hi) = m.bounds();
-            assert!(hi[0] - lo[0] > 45.0 && hi[0] - lo[0] < 70.0, "arch width {lo:?} {hi:?}");
+            assert!(
+                hi[0] - lo[0] > 45.0 && hi[0] - lo[0] < 70.0,
+                "arch width {lo:?} {hi:?}"
+            );
             // BOI: on the six front crowns (central incisor to canine, each side), on each of
             // them, and on no premolar or molar; crowns are built in order from the midline.
             let per_crown = m.triangles.len() / 14;
             for k in 0..14 {
-                let n = m.boi[k * per_crown..(k + 1) * per_crown].iter().filter(|&&b| b).count();
+                let n = m.boi[k * per_crown..(k + 1) * per_crown]
+                    .iter()
+                    .filter(|&&b| b)
+                    .count();
                 let front = k % 7 < 3;
                 assert_eq!(n > 0, front, "upper={upper} crown {k}: {n} BOI faces");
             }

@@ -34,7 +34,11 @@ pub fn mandible_mesh(lower: &Mesh, jaw: &JawModel) -> Mesh {
     line.extend(ramus(&cond_r, -1.0));
     for k in 0..=12 {
         let phi = (-100.0 + 200.0 * k as f64 / 12.0f64).to_radians();
-        line.push(Vector3::new(mid_x + a * phi.sin(), body_y, front_z - b + b * phi.cos()));
+        line.push(Vector3::new(
+            mid_x + a * phi.sin(),
+            body_y,
+            front_z - b + b * phi.cos(),
+        ));
     }
     line.extend(ramus(&cond_l, 1.0).into_iter().rev());
     sweep_tube(&mut mesh, &line, 4.5, 9.0);
@@ -51,13 +55,13 @@ fn sweep_tube(mesh: &mut Mesh, line: &[Vector3<f64>], r_side: f64, r_up: f64) {
     let n = line.len();
     let tangent = |i: usize| (line[(i + 1).min(n - 1)] - line[i.saturating_sub(1)]).normalize();
     let mut side = tangent(0).cross(&Vector3::y()).normalize();
-    for i in 0..n {
+    for (i, centre) in line.iter().enumerate() {
         let t = tangent(i);
         side = (side - t * side.dot(&t)).normalize();
         let up = side.cross(&t);
         for k in 0..RING {
             let a = k as f64 / RING as f64 * std::f64::consts::TAU;
-            let p = line[i] + side * (r_side * a.cos()) + up * (r_up * a.sin());
+            let p = centre + side * (r_side * a.cos()) + up * (r_up * a.sin());
             mesh.positions.push([p.x as f32, p.y as f32, p.z as f32]);
         }
     }
@@ -79,7 +83,11 @@ fn add_ellipsoid(mesh: &mut Mesh, c: Vector3<f64>, r: Vector3<f64>) {
         let th = std::f64::consts::PI * i as f64 / LAT as f64;
         for k in 0..RING {
             let ph = std::f64::consts::TAU * k as f64 / RING as f64;
-            let p = c + Vector3::new(r.x * th.sin() * ph.cos(), r.y * th.cos(), r.z * th.sin() * ph.sin());
+            let p = c + Vector3::new(
+                r.x * th.sin() * ph.cos(),
+                r.y * th.cos(),
+                r.z * th.sin() * ph.sin(),
+            );
             mesh.positions.push([p.x as f32, p.y as f32, p.z as f32]);
         }
     }

@@ -12,10 +12,9 @@ use crate::geometry::Camera;
 /// A lip edge: points along the front of an arch, in that arch's frame.
 #[derive(Debug, Clone)]
 pub struct LipLine {
-    /// (x, z) of the arch's labial surface, 1 mm apart, across the mouth.
-    front: Vec<(f64, f64)>,
-    /// Height of the crown tips (min y for the upper arch, max y for the lower).
-    tip_y: f64,
+    /// (x, z, tip y) across the mouth, 1 mm apart: z just in front of the labial surface,
+    /// and the height of the crown tips there (the incisal edge, not the molar cusps).
+    front: Vec<(f64, f64, f64)>,
     half_width: f64,
     arch: Arch,
 }
@@ -25,28 +24,39 @@ impl LipLine {
     pub const MOUTH_HALF_WIDTH_MM: f64 = 24.0;
     /// How far the lips come towards each other at the corners, beyond the tips (mm).
     const CORNER_MM: f64 = 2.0;
+    /// Depth behind the labial surface searched for the local tip height (mm).
+    const FRONT_DEPTH_MM: f64 = 8.0;
 
     pub fn new(mesh: &Mesh, arch: Arch) -> LipLine {
         let (lo, hi) = mesh.bounds();
         let mid = (lo[0] + hi[0]) as f64 * 0.5;
         let w = Self::MOUTH_HALF_WIDTH_MM;
+        let towards_tip = if arch == Arch::Upper { -1.0 } else { 1.0 };
         let mut front = Vec::new();
         for k in -(w as i64)..=(w as i64) {
             let x = mid + k as f64;
-            let z = mesh
+            let column: Vec<&[f32; 3]> = mesh
                 .positions
                 .iter()
                 .filter(|p| (p[0] as f64 - x).abs() < 1.0)
+                .collect();
+            let z = column
+                .iter()
                 .map(|p| p[2] as f64)
                 .fold(f64::NEG_INFINITY, f64::max);
-            if z.is_finite() {
-                // The lip lies on the teeth, 1.5 mm in front of the labial surface.
-                front.push((x, z + 1.5));
+            if !z.is_finite() {
+                continue;
             }
+            let tip = column
+                .iter()
+                .filter(|p| p[2] as f64 > z - Self::FRONT_DEPTH_MM)
+                .map(|p| towards_tip * p[1] as f64)
+                .fold(f64::NEG_INFINITY, f64::max);
+            // The lip lies on the teeth, 1.5 mm in front of the labial surface.
+            front.push((x, z + 1.5, towards_tip * tip));
         }
         LipLine {
             front,
-            tip_y: if arch == Arch::Upper { lo[1] } else { hi[1] } as f64,
             half_width: w,
             arch,
         }
@@ -59,10 +69,10 @@ impl LipLine {
         let mid = self.front.iter().map(|p| p.0).sum::<f64>() / self.front.len().max(1) as f64;
         self.front
             .iter()
-            .map(|&(x, z)| {
+            .map(|&(x, z, tip_y)| {
                 let u = ((x - mid) / self.half_width).clamp(-1.0, 1.0);
                 let phi = (1.0 - u * u).max(0.0).sqrt();
-                let y = self.tip_y + away * (show_mm * phi - Self::CORNER_MM * (1.0 - phi));
+                let y = tip_y + away * (show_mm * phi - Self::CORNER_MM * (1.0 - phi));
                 Vector3::new(x, y, z)
             })
             .collect()
@@ -95,7 +105,11 @@ pub fn lip_opening(
             let first = u0.ceil().max(0.0) as usize;
             let last = (u1.floor() as i64).min(w as i64 - 1);
             for u in first as i64..=last {
-                let t = if (b.x - a.x).abs() < 1e-12 { 0.0 } else { (u as f64 - a.x) / (b.x - a.x) };
+                let t = if (b.x - a.x).abs() < 1e-12 {
+                    0.0
+                } else {
+                    (u as f64 - a.x) / (b.x - a.x)
+                };
                 let v = a.y + t * (b.y - a.y);
                 let e = &mut edge[u as usize];
                 *e = match (lip.arch, e.is_nan()) {
@@ -128,7 +142,13 @@ pub fn apply_lips(labels: &mut [u8], width: usize, opening: &[(f64, f64)]) {
 
 /// Morphological closing of each label's region with a (2r+1)² square, filling only
 /// background: the gums between neighbouring crowns become teeth, as in real segmentations.
-pub fn fill_between_teeth(labels: &mut [u8], width: usize, height: usize, radius: usize, label_values: &[u8]) {
+pub fn fill_between_teeth(
+    labels: &mut [u8],
+    width: usize,
+    height: usize,
+    radius: usize,
+    label_values: &[u8],
+) {
     for &label in label_values {
         let region: Vec<bool> = labels.iter().map(|&l| l == label).collect();
         let dilated = filter(&region, width, height, radius, true);
@@ -150,7 +170,13 @@ fn filter(src: &[bool], w: usize, h: usize, r: usize, dilate: bool) -> Vec<bool>
                 let (c, n) = if horizontal { (x, w) } else { (y, h) };
                 let lo = c.saturating_sub(r);
                 let hi = (c + r).min(n - 1);
-                let at = |k: usize| if horizontal { src[y * w + k] } else { src[k * w + x] };
+                let at = |k: usize| {
+                    if horizontal {
+                        src[y * w + k]
+                    } else {
+                        src[k * w + x]
+                    }
+                };
                 out[y * w + x] = if dilate {
                     (lo..=hi).any(at)
                 } else {
@@ -165,7 +191,13 @@ fn filter(src: &[bool], w: usize, h: usize, r: usize, dilate: bool) -> Vec<bool>
 }
 
 /// Small round holes where a specular highlight defeated the segmentation.
-pub fn specular_holes(labels: &mut [u8], width: usize, count: usize, max_radius: i64, rng: &mut impl rand::Rng) {
+pub fn specular_holes(
+    labels: &mut [u8],
+    width: usize,
+    count: usize,
+    max_radius: i64,
+    rng: &mut impl rand::Rng,
+) {
     let height = labels.len() / width;
     let teeth: Vec<usize> = (0..labels.len()).filter(|&i| labels[i] != 0).collect();
     if teeth.is_empty() {
@@ -178,7 +210,12 @@ pub fn specular_holes(labels: &mut [u8], width: usize, count: usize, max_radius:
         for dy in -r..=r {
             for dx in -r..=r {
                 let (x, y) = (cx + dx, cy + dy);
-                if dx * dx + dy * dy <= r * r && x >= 0 && y >= 0 && (x as usize) < width && (y as usize) < height {
+                if dx * dx + dy * dy <= r * r
+                    && x >= 0
+                    && y >= 0
+                    && (x as usize) < width
+                    && (y as usize) < height
+                {
                     labels[y as usize * width + x as usize] = 0;
                 }
             }
@@ -188,12 +225,21 @@ pub fn specular_holes(labels: &mut [u8], width: usize, count: usize, max_radius:
 
 /// Boundaries that wander: every pixel takes its label from a point displaced by a smooth
 /// random field (a 12-pixel grid of offsets in ±`amplitude` px, bilinear in between).
-pub fn wander_boundaries(labels: &[u8], width: usize, amplitude: f64, rng: &mut impl rand::Rng) -> Vec<u8> {
+pub fn wander_boundaries(
+    labels: &[u8],
+    width: usize,
+    amplitude: f64,
+    rng: &mut impl rand::Rng,
+) -> Vec<u8> {
     const CELL: usize = 12;
     let height = labels.len() / width;
     let gw = width / CELL + 2;
     let gh = height / CELL + 2;
-    let mut grid = || -> Vec<f64> { (0..gw * gh).map(|_| rng.random_range(-amplitude..=amplitude)).collect() };
+    let mut grid = || -> Vec<f64> {
+        (0..gw * gh)
+            .map(|_| rng.random_range(-amplitude..=amplitude))
+            .collect()
+    };
     let (gx, gy) = (grid(), grid());
     let sample = |g: &[f64], x: usize, y: usize| {
         let (fx, fy) = (x as f64 / CELL as f64, y as f64 / CELL as f64);
@@ -206,8 +252,12 @@ pub fn wander_boundaries(labels: &[u8], width: usize, amplitude: f64, rng: &mut 
     let mut out = vec![0u8; labels.len()];
     for y in 0..height {
         for x in 0..width {
-            let sx = (x as f64 + sample(&gx, x, y)).round().clamp(0.0, width as f64 - 1.0) as usize;
-            let sy = (y as f64 + sample(&gy, x, y)).round().clamp(0.0, height as f64 - 1.0) as usize;
+            let sx = (x as f64 + sample(&gx, x, y))
+                .round()
+                .clamp(0.0, width as f64 - 1.0) as usize;
+            let sy = (y as f64 + sample(&gy, x, y))
+                .round()
+                .clamp(0.0, height as f64 - 1.0) as usize;
             out[y * width + x] = labels[sy * width + sx];
         }
     }

@@ -17,8 +17,8 @@ use rand_chacha::ChaCha8Rng;
 use rayon::prelude::*;
 
 use crate::capture::json::{
-    ArchInitJson, BoiJson, CameraJson, CaptureJson, FrameRecordJson, FramesJson, InitJson, MasksJson,
-    MeshesJson, PoseJson, TracksJson,
+    ArchInitJson, BoiJson, CameraJson, CaptureJson, FrameRecordJson, FramesJson, InitJson,
+    MasksJson, MeshesJson, PoseJson, TracksJson,
 };
 use crate::capture::mesh::{BoiMarking, mark_boi, write_obj};
 use crate::capture::{Arch, ArchPoses, BoiSource, Mesh, write_atomic, write_json_atomic};
@@ -131,7 +131,8 @@ struct Session {
 pub fn rig_cameras() -> Vec<Camera> {
     RIG.iter()
         .map(|(name, json)| {
-            let cj: CameraJson = serde_json::from_str(json).expect("calib/ camera files are valid JSON");
+            let cj: CameraJson =
+                serde_json::from_str(json).expect("calib/ camera files are valid JSON");
             let pose = PoseJson {
                 rotation: cj.rotation,
                 translation: cj.translation,
@@ -160,10 +161,16 @@ fn load_arch(dir: &Path, arch: Arch) -> Result<Mesh> {
         .find(|p| p.exists())
         .ok_or_else(|| Error::Missing {
             path: dir.join(format!("{}.obj", arch.name())),
-            what: format!("{} arch mesh ({}.obj, .stl or .ply)", arch.name(), arch.name()),
+            what: format!(
+                "{} arch mesh ({}.obj, .stl or .ply)",
+                arch.name(),
+                arch.name()
+            ),
         })?;
     let mut mesh = Mesh::load(&path, BoiSource::GroupIfPresent("boi"))?;
-    if mesh.boi_face_count() == 0 && mark_boi(&mut mesh, &BoiMarking::for_arch(arch == Arch::Upper)) == 0 {
+    if mesh.boi_face_count() == 0
+        && mark_boi(&mut mesh, &BoiMarking::for_arch(arch == Arch::Upper)) == 0
+    {
         return Err(Error::invalid(
             &path,
             "boi",
@@ -178,7 +185,10 @@ impl Session {
         let mut rng = ChaCha8Rng::seed_from_u64(opts.seed);
         let (upper, lower) = match &opts.meshes {
             Some(dir) => (load_arch(dir, Arch::Upper)?, load_arch(dir, Arch::Lower)?),
-            None => (arches::procedural_arch(true), arches::procedural_arch(false)),
+            None => (
+                arches::procedural_arch(true),
+                arches::procedural_arch(false),
+            ),
         };
         let rest = arches::rest_bite(&upper, &lower);
         let jaw = JawModel::for_arches(&upper, rest);
@@ -186,17 +196,25 @@ impl Session {
         let (ulo, uhi) = upper.bounds();
         let anchor = Vector3::new((ulo[0] + uhi[0]) as f64 * 0.5, ulo[1] as f64, uhi[2] as f64);
         let (llo, lhi) = lower.bounds();
-        let lower_incisor = Vector3::new((llo[0] + lhi[0]) as f64 * 0.5, lhi[1] as f64, lhi[2] as f64);
+        let lower_incisor =
+            Vector3::new((llo[0] + lhi[0]) as f64 * 0.5, lhi[1] as f64, lhi[2] as f64);
         let cameras = rig_cameras();
         let mask_cameras = cameras
             .iter()
             .map(|c| c.scaled_to(c.width / 2, c.height / 2))
             .collect();
-        let lips = [masks::LipLine::new(&upper, Arch::Upper), masks::LipLine::new(&lower, Arch::Lower)];
+        let lips = [
+            masks::LipLine::new(&upper, Arch::Upper),
+            masks::LipLine::new(&lower, Arch::Lower),
+        ];
         let mut phase = || rng.random_range(0.0..std::f64::consts::TAU);
         let head_phase = [phase(), phase(), phase(), phase(), phase(), phase()];
         let lip_phase = [phase(), phase()];
-        let gain = [rng.random_range(0.95..=1.0), rng.random_range(0.95..=1.0), rng.random_range(0.95..=1.0)];
+        let gain = [
+            rng.random_range(0.95..=1.0),
+            rng.random_range(0.95..=1.0),
+            rng.random_range(0.95..=1.0),
+        ];
         Ok(Session {
             upper,
             lower,
@@ -214,7 +232,11 @@ impl Session {
     }
 
     fn controls(&self, index: u32, opts: &SynthOptions) -> JawControls {
-        let tau = if opts.frames > 1 { index as f64 / (opts.frames - 1) as f64 } else { 0.0 };
+        let tau = if opts.frames > 1 {
+            index as f64 / (opts.frames - 1) as f64
+        } else {
+            0.0
+        };
         let repeats = if opts.preset == Preset::Hard { 2 } else { 1 };
         exercise_controls(tau, repeats, &self.gain)
     }
@@ -224,18 +246,32 @@ impl Session {
         let t = index as f64 / FRAMES_PER_SECOND;
         let periods = [7.0, 9.0, 5.0, 6.0, 8.0, 4.0];
         let w: [f64; 6] = std::array::from_fn(|k| {
-            (std::f64::consts::TAU * t / periods[k] + self.head_phase[k]).sin() - self.head_phase[k].sin()
+            (std::f64::consts::TAU * t / periods[k] + self.head_phase[k]).sin()
+                - self.head_phase[k].sin()
         });
         let a = 2f64.to_radians();
-        let wobble = Pose::from_euler_tuple(&[a * w[0], a * w[1], a * w[2], 2.0 * w[3], 2.0 * w[4], 2.0 * w[5]]);
+        let wobble = Pose::from_euler_tuple(&[
+            a * w[0],
+            a * w[1],
+            a * w[2],
+            2.0 * w[3],
+            2.0 * w[4],
+            2.0 * w[5],
+        ]);
         wobble.compose(&self.world_from_upper_rest)
     }
 
     /// Visible crown beyond the tips at the midline (mm), upper and lower lip.
     fn lip_show(&self, index: u32, opts: &SynthOptions) -> [f64; 2] {
         let t = index as f64 / FRAMES_PER_SECOND;
-        let tau = if opts.frames > 1 { index as f64 / (opts.frames - 1) as f64 } else { 0.0 };
-        if opts.preset == Preset::Hard && ((0.30..0.34).contains(&tau) || (0.70..0.73).contains(&tau)) {
+        let tau = if opts.frames > 1 {
+            index as f64 / (opts.frames - 1) as f64
+        } else {
+            0.0
+        };
+        if opts.preset == Preset::Hard
+            && ((0.30..0.34).contains(&tau) || (0.70..0.73).contains(&tau))
+        {
             return [-4.0, -4.0]; // the lips close
         }
         [
@@ -252,11 +288,27 @@ struct RenderedMask {
     alone_pixels: [u64; 2],
 }
 
-fn render_mask(s: &Session, cam: &Camera, poses: &ArchPoses, show: [f64; 2], opts: &SynthOptions, rng: &mut ChaCha8Rng) -> RenderedMask {
+fn render_mask(
+    s: &Session,
+    cam: &Camera,
+    poses: &ArchPoses,
+    show: [f64; 2],
+    opts: &SynthOptions,
+    rng: &mut ChaCha8Rng,
+) -> RenderedMask {
     let (w, h) = (cam.width as usize, cam.height as usize);
-    let mut labels = render_labels(cam, &[(&s.upper, &poses.upper, UPPER_LABEL), (&s.lower, &poses.lower, LOWER_LABEL)]);
+    let mut labels = render_labels(
+        cam,
+        &[
+            (&s.upper, &poses.upper, UPPER_LABEL),
+            (&s.lower, &poses.lower, LOWER_LABEL),
+        ],
+    );
     let alone = |mesh: &Mesh, pose: &Pose| {
-        render_labels(cam, &[(mesh, pose, 1)]).iter().filter(|&&l| l != 0).count() as u64
+        render_labels(cam, &[(mesh, pose, 1)])
+            .iter()
+            .filter(|&&l| l != 0)
+            .count() as u64
     };
     let alone_pixels = [alone(&s.upper, &poses.upper), alone(&s.lower, &poses.lower)];
     let (jitter, holes, hole_radius) = match opts.preset {
@@ -283,7 +335,8 @@ fn render_mask(s: &Session, cam: &Camera, poses: &ArchPoses, show: [f64; 2], opt
         }
     }
     // A camera that sees no teeth writes no mask: the format's "saw nothing usable".
-    let png = (mask_pixels[0] + mask_pixels[1] > 0).then(|| encode_png(&labels, cam.width, cam.height));
+    let png =
+        (mask_pixels[0] + mask_pixels[1] > 0).then(|| encode_png(&labels, cam.width, cam.height));
     RenderedMask {
         png,
         mask_pixels,
@@ -305,7 +358,11 @@ fn encode_png(grey: &[u8], width: u32, height: u32) -> Vec<u8> {
 }
 
 /// Write a synthetic capture to `out`. `progress` is called once per finished frame.
-pub fn generate(out: &Path, opts: &SynthOptions, progress: &(dyn Fn() + Sync)) -> Result<SynthReport> {
+pub fn generate(
+    out: &Path,
+    opts: &SynthOptions,
+    progress: &(dyn Fn() + Sync),
+) -> Result<SynthReport> {
     let started = Instant::now();
     if opts.frames == 0 {
         return Err(Error::invalid(out, "--frames", "must be at least 1"));
@@ -319,19 +376,34 @@ pub fn generate(out: &Path, opts: &SynthOptions, progress: &(dyn Fn() + Sync)) -
     }
     let session = Session::new(opts)?;
     // Build beside the target, then move into place: a crash never leaves half a capture.
-    let parent = out.parent().filter(|p| !p.as_os_str().is_empty()).unwrap_or(Path::new("."));
-    std::fs::create_dir_all(parent).map_err(|source| Error::Write { path: parent.to_path_buf(), source })?;
+    let parent = out
+        .parent()
+        .filter(|p| !p.as_os_str().is_empty())
+        .unwrap_or(Path::new("."));
+    std::fs::create_dir_all(parent).map_err(|source| Error::Write {
+        path: parent.to_path_buf(),
+        source,
+    })?;
     let staging = tempfile::Builder::new()
         .prefix(".jawtrack-synth-")
         .tempdir_in(parent)
-        .map_err(|source| Error::Write { path: parent.to_path_buf(), source })?;
+        .map_err(|source| Error::Write {
+            path: parent.to_path_buf(),
+            source,
+        })?;
     let dir = staging.path();
     let report = write_capture(dir, &session, opts, progress, started)?;
     if out.exists() {
-        std::fs::remove_dir_all(out).map_err(|source| Error::Write { path: out.to_path_buf(), source })?;
+        std::fs::remove_dir_all(out).map_err(|source| Error::Write {
+            path: out.to_path_buf(),
+            source,
+        })?;
     }
     let dir = staging.keep();
-    std::fs::rename(&dir, out).map_err(|source| Error::Write { path: out.to_path_buf(), source })?;
+    std::fs::rename(&dir, out).map_err(|source| Error::Write {
+        path: out.to_path_buf(),
+        source,
+    })?;
     Ok(report)
 }
 
@@ -355,7 +427,9 @@ fn write_capture(
             lower: "meshes/lower.obj".into(),
             mandible: Some("meshes/mandible.obj".into()),
         },
-        boi: BoiJson::Group { group: "boi".into() },
+        boi: BoiJson::Group {
+            group: "boi".into(),
+        },
         masks: match opts.masks {
             MaskKind::PerArch => MasksJson {
                 dir: "masks".into(),
@@ -373,7 +447,10 @@ fn write_capture(
     };
     write_json_atomic(&dir.join("capture.json"), &capture)?;
     for (name, json) in RIG {
-        write_atomic(&dir.join("cameras").join(format!("{name}.json")), json.as_bytes())?;
+        write_atomic(
+            &dir.join("cameras").join(format!("{name}.json")),
+            json.as_bytes(),
+        )?;
     }
     write_obj(&s.upper, &dir.join("meshes/upper.obj"))?;
     write_obj(&s.lower, &dir.join("meshes/lower.obj"))?;
@@ -392,10 +469,18 @@ fn write_capture(
             let show = s.lip_show(index, opts);
             let mut stats = Vec::with_capacity(s.mask_cameras.len());
             for (c, cam) in s.mask_cameras.iter().enumerate() {
-                let mut rng = ChaCha8Rng::seed_from_u64(opts.seed ^ ((index as u64) << 8 | c as u64).wrapping_mul(0x9E37_79B9_7F4A_7C15));
+                let mut rng = ChaCha8Rng::seed_from_u64(
+                    opts.seed
+                        ^ ((index as u64) << 8 | c as u64).wrapping_mul(0x9E37_79B9_7F4A_7C15),
+                );
                 let m = render_mask(s, cam, &poses, show, opts, &mut rng);
                 if let Some(png) = &m.png {
-                    write_atomic(&dir.join("masks").join(&cam.name).join(format!("{index:06}.png")), png)?;
+                    write_atomic(
+                        &dir.join("masks")
+                            .join(&cam.name)
+                            .join(format!("{index:06}.png")),
+                        png,
+                    )?;
                 }
                 stats.push(m);
             }
@@ -416,15 +501,21 @@ fn write_capture(
             status: None,
         })
         .collect();
-    write_json_atomic(&dir.join("gt/poses.json"), &TracksJson {
-        format: crate::capture::json::TRACKS_FORMAT.into(),
-        frames: records,
-    })?;
+    write_json_atomic(
+        &dir.join("gt/poses.json"),
+        &TracksJson {
+            format: crate::capture::json::TRACKS_FORMAT.into(),
+            frames: records,
+        },
+    )?;
     let first = &frames[0].1;
-    write_json_atomic(&dir.join("init.json"), &InitJson {
-        upper: ArchInitJson::Pose((&first.upper).into()),
-        lower: ArchInitJson::Pose((&first.lower).into()),
-    })?;
+    write_json_atomic(
+        &dir.join("init.json"),
+        &InitJson {
+            upper: ArchInitJson::Pose((&first.upper).into()),
+            lower: ArchInitJson::Pose((&first.lower).into()),
+        },
+    )?;
 
     let rest_incisor = s.jaw.rest.transform_point(&s.lower_incisor);
     let mut report = SynthReport {
@@ -463,7 +554,13 @@ fn write_capture(
             mask_size: [cam.width, cam.height],
             frames_with_mask: with_mask,
             mean_mask_pixels: mask.map(|m| m as f64 / opts.frames as f64),
-            visible_share: [0, 1].map(|k| if alone[k] == 0 { 0.0 } else { mask[k] as f64 / alone[k] as f64 }),
+            visible_share: [0, 1].map(|k| {
+                if alone[k] == 0 {
+                    0.0
+                } else {
+                    mask[k] as f64 / alone[k] as f64
+                }
+            }),
         });
     }
     report.seconds = started.elapsed().as_secs_f64();

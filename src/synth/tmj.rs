@@ -76,7 +76,8 @@ impl JawModel {
         let prot = c.protrusion.clamp(0.0, 1.0);
         let lat = c.lateral.clamp(-1.0, 1.0);
         let hinge = open * self.max_opening_rad;
-        let translating = ((hinge - self.hinge_only_rad) / (self.max_opening_rad - self.hinge_only_rad)).max(0.0);
+        let translating =
+            ((hinge - self.hinge_only_rad) / (self.max_opening_rad - self.hinge_only_rad)).max(0.0);
         let s_open = self.opening_travel_mm * translating;
         let s_common = s_open + prot * self.protrusion_travel_mm;
         // Moving the chin to the left (+x) advances the right (balancing) condyle.
@@ -114,20 +115,20 @@ impl JawModel {
 /// (cosine easing between keys) over the capture, `repeats` times.
 const EXERCISE: [(f64, f64, f64); 17] = [
     (0.0, 0.0, 0.0),
-    (1.0, 0.0, 0.0),   // open wide
+    (1.0, 0.0, 0.0), // open wide
     (0.0, 0.0, 0.0),
-    (0.08, 1.0, 0.0),  // left excursion
+    (0.08, 1.0, 0.0), // left excursion
     (0.0, 0.0, 0.0),
     (0.08, -1.0, 0.0), // right excursion
     (0.0, 0.0, 0.0),
-    (0.03, 0.0, 1.0),  // protrusion
-    (0.45, 0.0, 0.6),  // open while protruded
+    (0.03, 0.0, 1.0), // protrusion
+    (0.45, 0.0, 0.6), // open while protruded
     (0.0, 0.0, 0.0),
-    (0.6, 0.6, 0.0),   // open to the left
+    (0.6, 0.6, 0.0), // open to the left
     (0.3, 0.0, 0.0),
-    (0.6, -0.6, 0.0),  // open to the right
+    (0.6, -0.6, 0.0), // open to the right
     (0.0, 0.0, 0.0),
-    (0.5, 0.0, 0.0),   // half open, chewing-like
+    (0.5, 0.0, 0.0), // half open, chewing-like
     (0.15, 0.3, 0.2),
     (0.0, 0.0, 0.0),
 ];
@@ -136,8 +137,8 @@ const EXERCISE: [(f64, f64, f64); 17] = [
 /// per subject (e.g. 0.9..1.0 so that seeds differ).
 pub fn exercise_controls(tau: f64, repeats: u32, gain: &[f64; 3]) -> JawControls {
     let keys = EXERCISE.len() - 1;
-    let x = (tau.clamp(0.0, 1.0) * repeats.max(1) as f64).fract()
-        + if tau >= 1.0 { 1.0 } else { 0.0 };
+    let x =
+        (tau.clamp(0.0, 1.0) * repeats.max(1) as f64).fract() + if tau >= 1.0 { 1.0 } else { 0.0 };
     let pos = (x * keys as f64).min(keys as f64);
     let i = (pos.floor() as usize).min(keys - 1);
     let f = pos - i as f64;
@@ -172,21 +173,51 @@ mod tests {
     #[test]
     fn ranges_match_the_literature() {
         let (m, inc) = model_and_incisor();
-        let open = incisal_motion(&m, &inc, JawControls { open: 1.0, ..Default::default() });
+        let open = incisal_motion(
+            &m,
+            &inc,
+            JawControls {
+                open: 1.0,
+                ..Default::default()
+            },
+        );
         // Maximum incisal opening ~45-50 mm.
         assert!(-open.y > 42.0 && -open.y < 53.0, "opening {open:?}");
-        let left = incisal_motion(&m, &inc, JawControls { lateral: 1.0, ..Default::default() });
+        let left = incisal_motion(
+            &m,
+            &inc,
+            JawControls {
+                lateral: 1.0,
+                ..Default::default()
+            },
+        );
         assert!(left.x > 8.0 && left.x < 12.0, "lateral {left:?}");
-        let prot = incisal_motion(&m, &inc, JawControls { protrusion: 1.0, ..Default::default() });
+        let prot = incisal_motion(
+            &m,
+            &inc,
+            JawControls {
+                protrusion: 1.0,
+                ..Default::default()
+            },
+        );
         assert!(prot.z > 7.0 && prot.z < 11.0, "protrusion {prot:?}");
-        let (sl, sr, _) = m.joint_state(&JawControls { open: 1.0, ..Default::default() });
-        assert!((15.0..=20.0).contains(&sl.max(sr)), "condylar travel {sl} {sr}");
+        let (sl, sr, _) = m.joint_state(&JawControls {
+            open: 1.0,
+            ..Default::default()
+        });
+        assert!(
+            (15.0..=20.0).contains(&sl.max(sr)),
+            "condylar travel {sl} {sr}"
+        );
     }
 
     #[test]
     fn first_degrees_of_opening_are_pure_hinge_rotation() {
         let (m, _) = model_and_incisor();
-        let small = JawControls { open: 0.2, ..Default::default() };
+        let small = JawControls {
+            open: 0.2,
+            ..Default::default()
+        };
         let (sl, sr, angle) = m.joint_state(&small);
         assert!(angle < m.hinge_only_rad && sl == 0.0 && sr == 0.0);
         // The condyles stay put: the motion fixes both condyle centres.

@@ -64,15 +64,22 @@ pub fn scan_dir() -> Option<PathBuf> {
         return Some(dir);
     }
     if std::env::var_os("JAWTRACK_REQUIRE_DATA").is_some() {
-        panic!("{} has no upper.obj and JAWTRACK_REQUIRE_DATA is set", dir.display());
+        panic!(
+            "{} has no upper.obj and JAWTRACK_REQUIRE_DATA is set",
+            dir.display()
+        );
     }
-    eprintln!("skipped: no real scans at {} (set JAWTRACK_SCAN_DIR)", dir.display());
+    eprintln!(
+        "skipped: no real scans at {} (set JAWTRACK_SCAN_DIR)",
+        dir.display()
+    );
     None
 }
 
 /// Edit a JSON file in place.
 pub fn edit_json(path: &Path, f: impl FnOnce(&mut serde_json::Value)) {
-    let mut v: serde_json::Value = serde_json::from_str(&std::fs::read_to_string(path).unwrap()).unwrap();
+    let mut v: serde_json::Value =
+        serde_json::from_str(&std::fs::read_to_string(path).unwrap()).unwrap();
     f(&mut v);
     std::fs::write(path, serde_json::to_string_pretty(&v).unwrap()).unwrap();
 }

@@ -75,9 +75,14 @@ pub fn mark_boi(mesh: &mut Mesh, m: &BoiMarking) -> usize {
         if means[b].is_none() {
             continue;
         }
-        let near: Vec<[f64; 2]> = (b.saturating_sub(3)..(b + 4).min(ANGLE_BINS)).filter_map(|k| means[k]).collect();
+        let near: Vec<[f64; 2]> = (b.saturating_sub(3)..(b + 4).min(ANGLE_BINS))
+            .filter_map(|k| means[k])
+            .collect();
         let n = near.len() as f64;
-        let q = [near.iter().map(|p| p[0]).sum::<f64>() / n, near.iter().map(|p| p[1]).sum::<f64>() / n];
+        let q = [
+            near.iter().map(|p| p[0]).sum::<f64>() / n,
+            near.iter().map(|p| p[1]).sum::<f64>() / n,
+        ];
         if let Some(pq) = prev {
             acc += ((q[0] - pq[0]).powi(2) + (q[1] - pq[1]).powi(2)).sqrt();
         }

@@ -135,7 +135,11 @@ impl Mesh {
             ));
         }
         let n = self.positions.len() as u32;
-        if let Some(i) = self.triangles.iter().position(|t| t.iter().any(|&v| v >= n)) {
+        if let Some(i) = self
+            .triangles
+            .iter()
+            .position(|t| t.iter().any(|&v| v >= n))
+        {
             return Err(Error::invalid(
                 path,
                 format!("face {i}"),
@@ -181,7 +185,11 @@ impl Mesh {
 fn read_face_list(path: &Path, face_count: usize) -> Result<Vec<bool>> {
     let faces: Vec<i64> = crate::capture::json::read_json(path, "boundary-of-interest face list")?;
     if faces.is_empty() {
-        return Err(Error::invalid(path, "faces", "the boundary-of-interest face list is empty"));
+        return Err(Error::invalid(
+            path,
+            "faces",
+            "the boundary-of-interest face list is empty",
+        ));
     }
     let mut flags = vec![false; face_count];
     for (i, &f) in faces.iter().enumerate() {

@@ -29,15 +29,17 @@ fn parse_obj(text: &str, path: &Path) -> Result<RawMesh> {
     for (line_no, line) in text.lines().enumerate() {
         let line = line.split('#').next().unwrap_or("").trim();
         let mut words = line.split_ascii_whitespace();
-        let Some(keyword) = words.next() else { continue };
+        let Some(keyword) = words.next() else {
+            continue;
+        };
         let at = || format!("line {}", line_no + 1);
         match keyword {
             "v" => {
                 let mut p = [0f32; 3];
                 for c in &mut p {
-                    let w = words
-                        .next()
-                        .ok_or_else(|| Error::invalid(path, at(), "a vertex needs three coordinates"))?;
+                    let w = words.next().ok_or_else(|| {
+                        Error::invalid(path, at(), "a vertex needs three coordinates")
+                    })?;
                     *c = w.parse().map_err(|_| {
                         Error::invalid(path, at(), format!("`{w}` is not a number"))
                     })?;
@@ -52,7 +54,13 @@ fn parse_obj(text: &str, path: &Path) -> Result<RawMesh> {
                         Error::invalid(path, at(), format!("`{w}` is not a vertex reference"))
                     })?;
                     let n = mesh.positions.len() as i64;
-                    let resolved = if i > 0 { i - 1 } else if i < 0 { n + i } else { -1 };
+                    let resolved = if i > 0 {
+                        i - 1
+                    } else if i < 0 {
+                        n + i
+                    } else {
+                        -1
+                    };
                     if resolved < 0 {
                         return Err(Error::invalid(
                             path,
@@ -64,10 +72,15 @@ fn parse_obj(text: &str, path: &Path) -> Result<RawMesh> {
                     polygon.push(resolved as u32);
                 }
                 if polygon.len() < 3 {
-                    return Err(Error::invalid(path, at(), "a face needs at least three vertices"));
+                    return Err(Error::invalid(
+                        path,
+                        at(),
+                        "a face needs at least three vertices",
+                    ));
                 }
                 for k in 1..polygon.len() - 1 {
-                    mesh.triangles.push([polygon[0], polygon[k], polygon[k + 1]]);
+                    mesh.triangles
+                        .push([polygon[0], polygon[k], polygon[k + 1]]);
                     mesh.face_tags.push(current);
                 }
             }
@@ -106,12 +119,20 @@ pub fn write_obj(mesh: &Mesh, path: &Path) -> Result<()> {
         w(&mut out, format_args!("v {} {} {}\n", p[0], p[1], p[2]));
     }
     for (name, want) in [("body", false), ("boi", true)] {
-        if !mesh.boi.iter().any(|&b| b == want) {
+        if !mesh.boi.contains(&want) {
             continue;
         }
         w(&mut out, format_args!("g {name}\n"));
-        for (t, _) in mesh.triangles.iter().zip(&mesh.boi).filter(|(_, b)| **b == want) {
-            w(&mut out, format_args!("f {} {} {}\n", t[0] + 1, t[1] + 1, t[2] + 1));
+        for (t, _) in mesh
+            .triangles
+            .iter()
+            .zip(&mesh.boi)
+            .filter(|(_, b)| **b == want)
+        {
+            w(
+                &mut out,
+                format_args!("f {} {} {}\n", t[0] + 1, t[1] + 1, t[2] + 1),
+            );
         }
     }
     crate::capture::write_atomic(path, &out)
@@ -128,7 +149,10 @@ mod tests {
                     g front\nf 1 2 3 4\n";
         let m = parse_obj(text, Path::new("t.obj")).unwrap();
         assert_eq!(m.positions.len(), 4);
-        assert_eq!(m.triangles, vec![[0, 1, 2], [0, 2, 3], [0, 1, 2], [0, 2, 3]]);
+        assert_eq!(
+            m.triangles,
+            vec![[0, 1, 2], [0, 2, 3], [0, 1, 2], [0, 2, 3]]
+        );
         let boi = m.tags.iter().position(|t| t == "boi").unwrap() as u32;
         let flagged: Vec<bool> = m.face_tags.iter().map(|ft| ft.contains(&boi)).collect();
         // The material stays in force after `g front`.
@@ -137,7 +161,9 @@ mod tests {
 
     #[test]
     fn bad_number_names_the_line() {
-        let err = parse_obj("v 0 0 0\nv 1 x 0\n", Path::new("t.obj")).err().unwrap();
+        let err = parse_obj("v 0 0 0\nv 1 x 0\n", Path::new("t.obj"))
+            .err()
+            .unwrap();
         assert!(err.to_string().contains("line 2"), "{err}");
     }
 }

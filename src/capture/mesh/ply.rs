@@ -49,7 +49,11 @@ pub(crate) fn read_ply(path: &Path) -> Result<RawMesh> {
         let mut p = [0f32; 3];
         for (k, name) in ["x", "y", "z"].iter().enumerate() {
             p[k] = v.get(*name).and_then(scalar).ok_or_else(|| {
-                Error::invalid(path, format!("vertex {i}"), format!("has no numeric `{name}`"))
+                Error::invalid(
+                    path,
+                    format!("vertex {i}"),
+                    format!("has no numeric `{name}`"),
+                )
             })? as f32;
         }
         positions.push(p);

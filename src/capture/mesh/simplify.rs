@@ -29,7 +29,14 @@ pub(super) fn simplify(mesh: &Mesh, max_triangles: usize) -> Mesh {
         }
         let target_tris = ((indices.len() / 3) as f64 * ratio).floor().max(1.0) as usize;
         // The error bound is relative to the mesh extent; the triangle budget is what counts.
-        let out = mo_simplify(&indices, &adapter, target_tris * 3, 1.0, SimplifyOptions::LockBorder, None);
+        let out = mo_simplify(
+            &indices,
+            &adapter,
+            target_tris * 3,
+            1.0,
+            SimplifyOptions::LockBorder,
+            None,
+        );
         for t in out.chunks_exact(3) {
             triangles.push([t[0], t[1], t[2]]);
             boi.push(class);

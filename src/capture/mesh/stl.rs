@@ -7,9 +7,8 @@ use crate::error::{Error, Result};
 
 pub(crate) fn read_stl(path: &Path) -> Result<RawMesh> {
     let mut file = std::fs::File::open(path).map_err(|e| Error::read(path, "mesh", e))?;
-    let stl = stl_io::read_stl(&mut file).map_err(|e| {
-        Error::invalid(path, "file", format!("not a readable STL file: {e}"))
-    })?;
+    let stl = stl_io::read_stl(&mut file)
+        .map_err(|e| Error::invalid(path, "file", format!("not a readable STL file: {e}")))?;
     let triangles: Vec<[u32; 3]> = stl
         .faces
         .iter()

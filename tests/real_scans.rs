@@ -1,0 +1,90 @@
+//! The real scans of ../shared/data/scan-tag0: automatic BOI marking, simplification, and
+//! synthetic captures built on them.
+
+mod common;
+
+use common::scan_dir;
+use jawtrack::capture::mesh::{BoiMarking, mark_boi, write_obj};
+use jawtrack::capture::{BoiSource, Capture, Mesh};
+use jawtrack::synth::{Preset, SynthOptions, generate};
+
+#[test]
+fn boi_is_marked_on_the_front_teeth_tips_of_the_real_scans() {
+    let Some(dir) = scan_dir() else { return };
+    for (name, upper) in [("upper", true), ("lower", false)] {
+        let mut m = Mesh::load(&dir.join(format!("{name}.obj")), BoiSource::None).unwrap();
+        assert!(m.triangles.len() > 80_000);
+        let n = mark_boi(&mut m, &BoiMarking::for_arch(upper));
+        let (lo, hi) = m.bounds();
+        assert!(
+            n > 1000 && n < m.triangles.len() / 10,
+            "{name}: {n} BOI faces"
+        );
+        let mut x_range = [f32::INFINITY, f32::NEG_INFINITY];
+        for (t, _) in m.triangles.iter().zip(&m.boi).filter(|(_, b)| **b) {
+            for &v in t {
+                let p = m.positions[v as usize];
+                x_range = [x_range[0].min(p[0]), x_range[1].max(p[0])];
+                // The front of the arch (the canines are ~10-16 mm behind the incisors) ...
+                assert!(p[2] > hi[2] - 18.0, "{name}: BOI vertex too far back {p:?}");
+            }
+        }
+        // ... spread to both sides of the midline (canine to canine), not one tooth.
+        let mid = (lo[0] + hi[0]) * 0.5;
+        assert!(
+            x_range[0] < mid - 10.0 && x_range[1] > mid + 10.0,
+            "{name}: BOI x range {x_range:?}"
+        );
+    }
+}
+
+#[test]
+fn simplification_keeps_the_boi_and_the_vertex_numbering() {
+    let Some(dir) = scan_dir() else { return };
+    let mut m = Mesh::load(&dir.join("upper.obj"), BoiSource::None).unwrap();
+    mark_boi(&mut m, &BoiMarking::for_arch(true));
+    let s = m.simplified(8000);
+    assert!(
+        s.triangles.len() <= 8000 && s.triangles.len() > 4000,
+        "{}",
+        s.triangles.len()
+    );
+    assert_eq!(s.positions, m.positions);
+    assert!(s.boi_face_count() > 50);
+    let (lo, hi) = (m.bounds(), s.bounds());
+    for k in 0..3 {
+        assert!((lo.0[k] - hi.0[k]).abs() < 0.5 && (lo.1[k] - hi.1[k]).abs() < 0.5);
+    }
+    // Written and read back with its group.
+    let t = tempfile::tempdir().unwrap();
+    let path = t.path().join("u.obj");
+    write_obj(&s, &path).unwrap();
+    let back = Mesh::load(&path, BoiSource::Group("boi")).unwrap();
+    assert_eq!(back.boi_face_count(), s.boi_face_count());
+    assert_eq!(back.positions.len(), s.positions.len());
+}
+
+#[test]
+fn a_synthetic_capture_on_the_real_scans_loads_back() {
+    let Some(dir) = scan_dir() else { return };
+    let t = tempfile::tempdir().unwrap();
+    let out = t.path().join("real");
+    let opts = SynthOptions {
+        frames: 5,
+        preset: Preset::Realistic,
+        meshes: Some(dir),
+        ..SynthOptions::default()
+    };
+    let report = generate(&out, &opts, &|| {}).unwrap();
+    assert!(report.triangles[0] > 80_000);
+    assert!(
+        report
+            .cameras
+            .iter()
+            .all(|c| c.mean_mask_pixels[0] > 100.0 && c.mean_mask_pixels[1] > 100.0),
+        "{report:?}"
+    );
+    let c = Capture::open(&out).unwrap();
+    assert_eq!(c.upper.triangles.len(), report.triangles[0]);
+    assert!(c.upper.boi_face_count() > 1000);
+}
