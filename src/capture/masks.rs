@@ -56,12 +56,16 @@ impl LabelMask {
     }
 }
 
-/// Read a mask PNG's size from its header only.
-pub fn mask_dimensions(path: &Path) -> Result<(u32, u32)> {
+fn open_image(path: &Path) -> Result<image::ImageReader<std::io::BufReader<std::fs::File>>> {
     image::ImageReader::open(path)
         .map_err(|e| Error::read(path, "mask", e))?
         .with_guessed_format()
-        .map_err(|e| Error::read(path, "mask", e))?
+        .map_err(|e| Error::read(path, "mask", e))
+}
+
+/// Read a mask PNG's size from its header only.
+pub fn mask_dimensions(path: &Path) -> Result<(u32, u32)> {
+    open_image(path)?
         .into_dimensions()
         .map_err(|e| Error::Image {
             path: path.to_path_buf(),
@@ -72,15 +76,10 @@ pub fn mask_dimensions(path: &Path) -> Result<(u32, u32)> {
 /// Decode a mask PNG into labels. Per-arch masks must be 8-bit single-channel (labels are
 /// exact values); combined masks may be any format and are converted to grey.
 pub fn decode_mask(path: &Path, mode: MaskMode) -> Result<LabelMask> {
-    let img = image::ImageReader::open(path)
-        .map_err(|e| Error::read(path, "mask", e))?
-        .with_guessed_format()
-        .map_err(|e| Error::read(path, "mask", e))?
-        .decode()
-        .map_err(|e| Error::Image {
-            path: path.to_path_buf(),
-            problem: e.to_string(),
-        })?;
+    let img = open_image(path)?.decode().map_err(|e| Error::Image {
+        path: path.to_path_buf(),
+        problem: e.to_string(),
+    })?;
     let (width, height) = (img.width(), img.height());
     let grey = match (img, mode) {
         (image::DynamicImage::ImageLuma8(g), _) => g.into_raw(),

@@ -516,6 +516,11 @@ enum BoiRef {
 /// Read a cameras/<name>.json file and validate every field.
 pub fn read_camera(path: &Path, name: &str) -> Result<Camera> {
     let cj: CameraJson = read_json(path, &format!("camera file for `{name}`"))?;
+    camera_from_json(&cj, path, name)
+}
+
+/// Validate a camera document (`path` names it in errors) and build the camera.
+pub fn camera_from_json(cj: &CameraJson, path: &Path, name: &str) -> Result<Camera> {
     if cj.width <= 0 || cj.height <= 0 || cj.width > 1 << 16 || cj.height > 1 << 16 {
         return Err(Error::invalid(
             path,

@@ -4,6 +4,7 @@
 
 use nalgebra::Vector3;
 
+use super::rings::stitch_rings;
 use crate::capture::Mesh;
 use crate::capture::mesh::{BoiMarking, mark_boi};
 use crate::geometry::Pose;
@@ -112,7 +113,6 @@ pub fn procedural_arch(upper: bool) -> Mesh {
             p[k] -= c[k];
         }
     }
-    mesh.boi = vec![false; mesh.triangles.len()];
     mark_boi(&mut mesh, &BoiMarking::for_arch(upper));
     mesh
 }
@@ -157,25 +157,15 @@ fn add_crown(mesh: &mut Mesh, t: &Tooth, x: f64, z: f64, heading: f64, upper: bo
             mesh.positions.push([p.x as f32, p.y as f32, p.z as f32]);
         }
     }
+    stitch_rings(mesh, base, RINGS + 1, SEGMENTS);
     let ring = |r: usize, k: usize| base + (r * SEGMENTS + k % SEGMENTS) as u32;
-    for r in 0..RINGS {
-        for k in 0..SEGMENTS {
-            let (a, b, c, d) = (
-                ring(r, k),
-                ring(r, k + 1),
-                ring(r + 1, k + 1),
-                ring(r + 1, k),
-            );
-            mesh.triangles.push([a, b, c]);
-            mesh.triangles.push([a, c, d]);
-        }
-    }
     // Caps: the cervical end and the tip, fans around a centre vertex.
     for (r, y_end) in [(0, -tip_dir * t.height), (RINGS, tip_dir * 0.3)] {
         let c = mesh.positions.len() as u32;
         mesh.positions.push([x as f32, y_end as f32, z as f32]);
         for k in 0..SEGMENTS {
             mesh.triangles.push([c, ring(r, k + 1), ring(r, k)]);
+            mesh.boi.push(false);
         }
     }
 }

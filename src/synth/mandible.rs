@@ -5,6 +5,7 @@
 
 use nalgebra::Vector3;
 
+use super::rings::stitch_rings;
 use super::tmj::JawModel;
 use crate::capture::Mesh;
 
@@ -65,15 +66,7 @@ fn sweep_tube(mesh: &mut Mesh, line: &[Vector3<f64>], r_side: f64, r_up: f64) {
             mesh.positions.push([p.x as f32, p.y as f32, p.z as f32]);
         }
     }
-    for i in 0..n - 1 {
-        for k in 0..RING {
-            let at = |r: usize, k: usize| base + (r * RING + k % RING) as u32;
-            let (a, b, c, d) = (at(i, k), at(i, k + 1), at(i + 1, k + 1), at(i + 1, k));
-            mesh.triangles.push([a, b, c]);
-            mesh.triangles.push([a, c, d]);
-            mesh.boi.extend([false, false]);
-        }
-    }
+    stitch_rings(mesh, base, n, RING);
 }
 
 fn add_ellipsoid(mesh: &mut Mesh, c: Vector3<f64>, r: Vector3<f64>) {
@@ -91,13 +84,5 @@ fn add_ellipsoid(mesh: &mut Mesh, c: Vector3<f64>, r: Vector3<f64>) {
             mesh.positions.push([p.x as f32, p.y as f32, p.z as f32]);
         }
     }
-    for i in 0..LAT {
-        for k in 0..RING {
-            let at = |r: usize, k: usize| base + (r * RING + k % RING) as u32;
-            let (a, b, c, d) = (at(i, k), at(i, k + 1), at(i + 1, k + 1), at(i + 1, k));
-            mesh.triangles.push([a, b, c]);
-            mesh.triangles.push([a, c, d]);
-            mesh.boi.extend([false, false]);
-        }
-    }
+    stitch_rings(mesh, base, LAT + 1, RING);
 }

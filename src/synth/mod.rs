@@ -6,6 +6,7 @@
 pub mod arches;
 pub mod mandible;
 pub mod masks;
+mod rings;
 pub mod tmj;
 
 use std::path::{Path, PathBuf};
@@ -18,7 +19,7 @@ use rayon::prelude::*;
 
 use crate::capture::json::{
     ArchInitJson, BoiJson, CameraJson, CaptureJson, FrameRecordJson, FramesJson, InitJson,
-    MasksJson, MeshesJson, PoseJson, TracksJson,
+    MasksJson, MeshesJson, TracksJson,
 };
 use crate::capture::mesh::{BoiMarking, mark_boi, write_obj};
 use crate::capture::{Arch, ArchPoses, BoiSource, Mesh, write_atomic, write_json_atomic};
@@ -127,29 +128,15 @@ struct Session {
     lower_incisor: Vector3<f64>,
 }
 
-/// Load the rig from calib/ (compiled in).
+/// The rig of calib/ (compiled in), read like any capture's camera files.
 pub fn rig_cameras() -> Vec<Camera> {
     RIG.iter()
         .map(|(name, json)| {
+            let path = Path::new("calib").join(format!("{name}.json"));
             let cj: CameraJson =
                 serde_json::from_str(json).expect("calib/ camera files are valid JSON");
-            let pose = PoseJson {
-                rotation: cj.rotation,
-                translation: cj.translation,
-            }
-            .to_pose(Path::new(name), "calib")
-            .expect("calib/ rotations are rotations");
-            Camera {
-                name: name.to_string(),
-                width: cj.width as u32,
-                height: cj.height as u32,
-                fx: cj.fx,
-                fy: cj.fy,
-                cx: cj.cx,
-                cy: cj.cy,
-                distortion: [0.0; 5],
-                camera_from_world: pose,
-            }
+            crate::capture::camera_from_json(&cj, &path, name)
+                .expect("calib/ camera files are valid cameras")
         })
         .collect()
 }
