@@ -38,6 +38,9 @@ pub enum Error {
     },
     #[error("{}: cannot decode the image: {problem}", path.display())]
     Image { path: PathBuf, problem: String },
+    /// The GPU energy engine could not start or run.
+    #[error("GPU: {0}")]
+    Gpu(#[from] crate::energy::gpu::GpuError),
 }
 
 pub type Result<T, E = Error> = std::result::Result<T, E>;

@@ -8,7 +8,7 @@ use std::cell::RefCell;
 use rayon::prelude::*;
 
 use super::raster::{self, CLASS_BODY, CLASS_BOI, Target};
-use super::{Counts, Energy, EnergyEngine, Scene};
+use super::{Counts, Energy, EnergyEngine, Region, Scene, counts_with_outside};
 use crate::capture::{Arch, ArchPoses, FrameMasks, LabelMask};
 use crate::error::Result;
 use crate::geometry::Camera;
@@ -21,6 +21,7 @@ struct PreparedMask {
 
 pub struct CpuEnergy {
     scene: Scene,
+    region: Region,
     frame: Vec<Option<PreparedMask>>,
 }
 
@@ -37,9 +38,14 @@ thread_local! {
 
 impl CpuEnergy {
     pub fn new(scene: Scene) -> Self {
+        Self::with_region(scene, Region::Footprint)
+    }
+
+    pub fn with_region(scene: Scene, region: Region) -> Self {
         let n = scene.cameras.len();
         CpuEnergy {
             scene,
+            region,
             frame: (0..n).map(|_| None).collect(),
         }
     }
@@ -55,15 +61,22 @@ impl CpuEnergy {
         };
         SCRATCH.with(|s| {
             let s = &mut *s.borrow_mut();
-            render(&self.scene, cam, arch, poses, s);
-            count(&s.target, &prep.mask, arch, prep.totals)
+            render(&self.scene, self.region, cam, arch, poses, s);
+            count(cam, &s.target, &prep.mask, arch, prep.totals)
         })
     }
 }
 
 /// Render the scored arch (body/BOI) and the other arch (see `Scene::other_arch_class`) over
 /// the scored arch's footprint (grown to the other arch's in combined mode).
-fn render(scene: &Scene, cam: &Camera, arch: Arch, poses: &ArchPoses, s: &mut Scratch) {
+fn render(
+    scene: &Scene,
+    region: Region,
+    cam: &Camera,
+    arch: Arch,
+    poses: &ArchPoses,
+    s: &mut Scratch,
+) {
     let mesh = scene.mesh(arch);
     let other = scene.mesh(arch.other());
     let cam_from = |p: &crate::geometry::Pose| cam.camera_from_world.compose(p);
@@ -74,10 +87,13 @@ fn render(scene: &Scene, cam: &Camera, arch: Arch, poses: &ArchPoses, s: &mut Sc
         &mut s.other_points,
     );
     let other_class = scene.other_arch_class();
-    let mut rect = raster::footprint(cam, &s.points);
-    if other_class != raster::CLASS_NONE {
-        rect = rect.union(&raster::footprint(cam, &s.other_points));
-    }
+    let rect = match region {
+        Region::FullFrame => raster::Rect::full(cam.width, cam.height),
+        Region::Footprint if other_class != raster::CLASS_NONE => {
+            raster::footprint(cam, &s.points).union(&raster::footprint(cam, &s.other_points))
+        }
+        Region::Footprint => raster::footprint(cam, &s.points),
+    };
     s.target.reset(rect);
     raster::rasterise(
         cam,
@@ -91,9 +107,8 @@ fn render(scene: &Scene, cam: &Camera, arch: Arch, poses: &ArchPoses, s: &mut Sc
 }
 
 /// The six bins over the whole mask: counted inside the target, derived outside it.
-fn count(target: &Target, mask: &LabelMask, arch: Arch, totals: [u64; 2]) -> Counts {
+fn count(cam: &Camera, target: &Target, mask: &LabelMask, arch: Arch, totals: [u64; 2]) -> Counts {
     let bit = arch.mask_bit();
-    let mask_total = totals[(arch == Arch::Lower) as usize];
     let mut bins = [0u64; 6];
     if let Some(r) = target.rect {
         let w = r.width as usize;
@@ -106,17 +121,16 @@ fn count(target: &Target, mask: &LabelMask, arch: Arch, totals: [u64; 2]) -> Cou
             }
         }
     }
-    let inside_on: u64 = bins[3..].iter().sum();
-    let inside_off: u64 = bins[..3].iter().sum();
-    let all = mask.width as u64 * mask.height as u64;
-    bins[3] += mask_total - inside_on;
-    bins[0] += (all - mask_total) - inside_off;
-    Counts { bins }
+    counts_with_outside(bins, cam, totals, arch)
 }
 
 impl EnergyEngine for CpuEnergy {
     fn name(&self) -> String {
-        format!("cpu reference ({} threads)", rayon::current_num_threads())
+        format!(
+            "cpu reference ({} threads), {:?}",
+            rayon::current_num_threads(),
+            self.region
+        )
     }
 
     fn set_frame(&mut self, masks: &FrameMasks) -> Result<()> {

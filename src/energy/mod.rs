@@ -3,6 +3,7 @@
 //! [`Energy`] (six counts per camera) out for each.
 
 pub mod cpu;
+pub mod gpu;
 pub mod raster;
 
 use crate::capture::{Arch, ArchPoses, Capture, FrameMasks, MaskMode, Mesh};
@@ -13,6 +14,31 @@ pub use cpu::CpuEnergy;
 
 /// The paper's weight of the boundary term.
 pub const DEFAULT_LAMBDA: f64 = 0.4;
+
+/// Which part of each mask an evaluation renders and counts. Both give the same counts:
+/// outside the model's footprint every pixel is class none, so those bins follow from the
+/// mask's totals.
+#[derive(Debug, Clone, Copy, Default, PartialEq, Eq, clap::ValueEnum)]
+pub enum Region {
+    /// Only the pixels the arch (and, in combined mode, the other arch) can cover.
+    #[default]
+    Footprint,
+    /// Every pixel of the mask (for comparison).
+    FullFrame,
+}
+
+/// The six bins of a camera from the bins counted inside a rendered region, adding the
+/// pixels outside it (all class none) from the mask's per-arch totals (upper, lower).
+pub fn counts_with_outside(inside: [u64; 6], cam: &Camera, totals: [u64; 2], arch: Arch) -> Counts {
+    let mask_total = totals[(arch == Arch::Lower) as usize];
+    let inside_on: u64 = inside[3..].iter().sum();
+    let inside_off: u64 = inside[..3].iter().sum();
+    let all = cam.width as u64 * cam.height as u64;
+    let mut bins = inside;
+    bins[3] += mask_total - inside_on;
+    bins[0] += (all - mask_total) - inside_off;
+    Counts { bins }
+}
 
 /// One camera's six counts: mask (off, on) x class (none, body, BOI), at `mask * 3 + class`.
 #[derive(Debug, Clone, Copy, Default, PartialEq, Eq)]

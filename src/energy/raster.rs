@@ -188,36 +188,31 @@ fn clip_near(v: &[[f32; 3]; 3]) -> Vec<[f32; 3]> {
     out
 }
 
+/// Projection to snapped framebuffer positions, in f32 and in the same order of operations
+/// as the GPU twin's vertex shader (shaders/raster.wgsl), so both snap alike.
 struct Projector {
-    fx: f64,
-    fy: f64,
-    cx: f64,
-    cy: f64,
+    focal: [f32; 2],
+    centre: [f32; 2],
 }
 
 impl Projector {
     fn new(cam: &Camera) -> Self {
         Projector {
-            fx: cam.fx,
-            fy: cam.fy,
-            cx: cam.cx,
-            cy: cam.cy,
+            focal: [cam.fx as f32, cam.fy as f32],
+            centre: [(cam.cx + 0.5) as f32, (cam.cy + 0.5) as f32],
         }
     }
 
     /// Snapped framebuffer position (1/256 pixel units) and 1/z; `None` outside the guard band.
     fn project(&self, p: &[f32; 3]) -> Option<(i64, i64, f32)> {
-        let z = p[2] as f64;
-        let u = self.fx * p[0] as f64 / z + self.cx + 0.5;
-        let v = self.fy * p[1] as f64 / z + self.cy + 0.5;
-        if u.abs() > GUARD_PIXELS || v.abs() > GUARD_PIXELS {
+        let z = p[2];
+        let fb = [0, 1].map(|k| self.focal[k] * p[k] / z + self.centre[k]);
+        if fb.iter().any(|c| c.abs() > GUARD_PIXELS as f32) {
             return None;
         }
-        Some((
-            (u * SUBPIXEL).round() as i64,
-            (v * SUBPIXEL).round() as i64,
-            (1.0 / z) as f32,
-        ))
+        // floor(x + 0.5), as the shader snaps.
+        let snap = |c: f32| (c * SUBPIXEL as f32 + 0.5).floor() as i64;
+        Some((snap(fb[0]), snap(fb[1]), 1.0 / z))
     }
 }
 

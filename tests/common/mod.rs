@@ -8,14 +8,13 @@ use jawtrack::synth::{MaskKind, Preset, SynthOptions, generate};
 
 /// A small synthetic capture, written once per test binary; copy it before changing it.
 pub fn template(preset: Preset, masks: MaskKind) -> &'static Path {
-    static CLEAN: OnceLock<tempfile::TempDir> = OnceLock::new();
-    static REALISTIC: OnceLock<tempfile::TempDir> = OnceLock::new();
-    static COMBINED: OnceLock<tempfile::TempDir> = OnceLock::new();
-    let cell = match (preset, masks) {
-        (Preset::Clean, MaskKind::PerArch) => &CLEAN,
-        (Preset::Clean, MaskKind::Combined) => &COMBINED,
-        _ => &REALISTIC,
+    static CELLS: [OnceLock<tempfile::TempDir>; 6] = [const { OnceLock::new() }; 6];
+    let p = match preset {
+        Preset::Clean => 0,
+        Preset::Realistic => 1,
+        Preset::Hard => 2,
     };
+    let cell = &CELLS[p * 2 + (masks == MaskKind::Combined) as usize];
     cell.get_or_init(|| {
         let dir = tempfile::tempdir().unwrap();
         let opts = SynthOptions {

@@ -1,0 +1,75 @@
+// Render pass of the energy: each arch drawn at a candidate pose into a tile of the class
+// atlas (R8Uint: 0 none, 1 body, 2 boundary of interest), depth-tested. The CPU twin is
+// src/energy/raster.rs.
+//
+// One `Draw` per draw call, selected by the instance index (draw_indexed's first instance).
+//
+// Pixel positions are those of the CPU twin: framebuffer coordinates u + 0.5 (OpenCV pixel
+// centres at integers), snapped to 1/256 pixel. When every vertex of a draw is in front of the
+// near plane (`projected`, checked on the CPU), the shader divides by z and snaps itself, and
+// hands the rasteriser w = 1 positions on the 1/256 grid in a power-of-two viewport: the
+// fixed-function viewport transform is then exact, whatever integer offset places the tile in
+// the atlas. Otherwise positions stay homogeneous and the GPU clips at the near plane.
+
+const SUBPIXELS: f32 = 256.0;
+
+struct Draw {
+    camera_from_model: mat4x4<f32>,
+    focal: vec2<f32>,
+    // Framebuffer coordinates of the principal point: (cx + 0.5, cy + 0.5).
+    centre: vec2<f32>,
+    // Half the viewport's size (powers of two).
+    half_viewport: vec2<f32>,
+    near: f32,
+    far: f32,
+    class_id: u32,
+    projected: u32,
+    _pad: vec2<u32>,
+}
+
+@group(0) @binding(0) var<storage, read> draws: array<Draw>;
+
+struct VsOut {
+    @builtin(position) position: vec4<f32>,
+    @location(0) @interpolate(flat) class_id: u32,
+}
+
+@vertex
+fn vs_model(@location(0) position: vec3<f32>, @builtin(instance_index) draw: u32) -> VsOut {
+    let d = draws[draw];
+    let p = (d.camera_from_model * vec4<f32>(position, 1.0)).xyz;
+    // Depth 0 at the near plane, 1 at the far plane; affine in 1/z, as the CPU's 1/z buffer.
+    let depth_scale = d.far / (d.far - d.near);
+    var out: VsOut;
+    if d.projected != 0u {
+        let fb = floor((d.focal * p.xy / p.z + d.centre) * SUBPIXELS + 0.5) / SUBPIXELS;
+        let ndc = vec2<f32>(fb.x / d.half_viewport.x - 1.0, 1.0 - fb.y / d.half_viewport.y);
+        out.position = vec4<f32>(ndc, depth_scale * (1.0 - d.near / p.z), 1.0);
+    } else {
+        let fb_z = d.focal * p.xy + d.centre * p.z;
+        out.position = vec4<f32>(
+            fb_z.x / d.half_viewport.x - p.z,
+            p.z - fb_z.y / d.half_viewport.y,
+            depth_scale * (p.z - d.near),
+            p.z,
+        );
+    }
+    out.class_id = d.class_id;
+    return out;
+}
+
+@fragment
+fn fs_class(in: VsOut) -> @location(0) u32 {
+    return in.class_id;
+}
+
+// Clearing one tile: a triangle covering the whole viewport, at the far plane, class none.
+// (A render pass clear would clear the whole atlas; this clears only the tile.)
+@vertex
+fn vs_clear(@builtin(vertex_index) i: u32) -> VsOut {
+    let corner = vec2<f32>(f32((i << 1u) & 2u), f32(i & 2u));
+    var out: VsOut;
+    out.position = vec4<f32>(corner * 2.0 - 1.0, 1.0, 1.0);
+    out.class_id = 0u;
+    return out;
+}
