@@ -2,6 +2,10 @@
 // atlas (R8Uint: 0 none, 1 body, 2 boundary of interest), depth-tested. The CPU twin is
 // src/energy/raster.rs.
 //
+// The same vertex stage also drives the `readback` baseline, the paper's architecture: mask in
+// white, model in red at alpha 0.5 (pink over the mask), BOI in green, into a colour target
+// that is read back whole and counted on the CPU (fs_mask, fs_colour).
+//
 // One `Draw` per draw call, selected by the instance index (draw_indexed's first instance).
 //
 // Pixel positions are those of the CPU twin: framebuffer coordinates u + 0.5 (OpenCV pixel
@@ -24,14 +28,23 @@ struct Draw {
     far: f32,
     class_id: u32,
     projected: u32,
+    // Readback baseline only: mask pixel = framebuffer pixel − mask_offset, in `layer`, and
+    // the scored arch's label bit.
+    mask_offset: vec2<i32>,
+    layer: u32,
+    arch_bit: u32,
     _pad: vec2<u32>,
 }
 
 @group(0) @binding(0) var<storage, read> draws: array<Draw>;
+@group(0) @binding(1) var masks: texture_2d_array<u32>;
 
 struct VsOut {
-    @builtin(position) position: vec4<f32>,
+    // Invariant: the readback baseline's colour pass tests depth for equality with its
+    // depth pre-pass, so both must compute identical positions.
+    @builtin(position) @invariant position: vec4<f32>,
     @location(0) @interpolate(flat) class_id: u32,
+    @location(1) @interpolate(flat) draw: u32,
 }
 
 @vertex
@@ -55,6 +68,7 @@ fn vs_model(@location(0) position: vec3<f32>, @builtin(instance_index) draw: u32
         );
     }
     out.class_id = d.class_id;
+    out.draw = draw;
     return out;
 }
 
@@ -65,11 +79,48 @@ fn fs_class(in: VsOut) -> @location(0) u32 {
 
 // Clearing one tile: a triangle covering the whole viewport, at the far plane, class none.
 // (A render pass clear would clear the whole atlas; this clears only the tile.)
+// The same triangle with the instance index passed on draws the mask (fs_mask).
 @vertex
-fn vs_clear(@builtin(vertex_index) i: u32) -> VsOut {
+fn vs_clear(@builtin(vertex_index) i: u32, @builtin(instance_index) draw: u32) -> VsOut {
     let corner = vec2<f32>(f32((i << 1u) & 2u), f32(i & 2u));
     var out: VsOut;
     out.position = vec4<f32>(corner * 2.0 - 1.0, 1.0, 1.0);
     out.class_id = 0u;
+    out.draw = draw;
     return out;
+}
+
+@fragment
+fn fs_clear_colour(in: VsOut) -> @location(0) vec4<f32> {
+    return vec4<f32>(0.0, 0.0, 0.0, 0.0);
+}
+
+// Readback baseline: the scored arch's mask pixels in white.
+@fragment
+fn fs_mask(in: VsOut) -> @location(0) vec4<f32> {
+    let d = draws[in.draw];
+    let pixel = vec2<i32>(floor(in.position.xy)) - d.mask_offset;
+    let label = textureLoad(masks, pixel, d.layer, 0).r;
+    if (label & d.arch_bit) == 0u {
+        discard;
+    }
+    return vec4<f32>(1.0, 1.0, 1.0, 1.0);
+}
+
+// Readback baseline: body red, BOI green, at alpha 0.5 over the mask's white or black. The mix
+// is what the paper's alpha blending gives, computed here and written without blending, so
+// that surfaces meeting at exactly the same depth (both pass the equal-depth test) do not
+// blend twice. Class none (the other arch in per-arch mode) only hides: it was drawn in the
+// depth pre-pass.
+@fragment
+fn fs_colour(in: VsOut) -> @location(0) vec4<f32> {
+    if in.class_id == 0u {
+        discard;
+    }
+    let d = draws[in.draw];
+    let pixel = vec2<i32>(floor(in.position.xy)) - d.mask_offset;
+    let on_mask = (textureLoad(masks, pixel, d.layer, 0).r & d.arch_bit) != 0u;
+    let under = select(vec3<f32>(0.0), vec3<f32>(1.0), on_mask);
+    let model = select(vec3<f32>(0.0, 1.0, 0.0), vec3<f32>(1.0, 0.0, 0.0), in.class_id == 1u);
+    return vec4<f32>(mix(under, model, 0.5), 1.0);
 }

@@ -46,6 +46,16 @@ pub enum GpuError {
     },
 }
 
+/// How the counts are made.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub enum Counting {
+    /// The compute-shader histogram (the engine).
+    Histogram,
+    /// The paper's architecture, as a baseline: a colour image per camera (mask white, model
+    /// red at alpha 0.5, BOI green), read back whole and counted on one CPU thread.
+    Readback,
+}
+
 /// Side of an atlas page (pixels); masks up to this size are supported.
 const PAGE: u32 = 4096;
 /// A dispatch's z extent is at most 65535 workgroups.
@@ -67,6 +77,9 @@ struct DrawRecord {
     far: f32,
     class_id: u32,
     projected: u32,
+    mask_offset: [i32; 2],
+    layer: u32,
+    arch_bit: u32,
     _pad: [u32; 2],
 }
 
@@ -154,14 +167,27 @@ struct Batch {
     capacity: (usize, usize, usize),
 }
 
+/// The readback baseline's colour target, pipelines and staging buffer.
+struct ReadbackTarget {
+    colour: wgpu::Texture,
+    colour_view: wgpu::TextureView,
+    clear: wgpu::RenderPipeline,
+    prepass: wgpu::RenderPipeline,
+    mask: wgpu::RenderPipeline,
+    colour_pass: wgpu::RenderPipeline,
+    staging: Mutex<Option<(wgpu::Buffer, u64)>>,
+}
+
 pub struct GpuEnergy {
     ctx: GpuContext,
     scene: Scene,
     region: Region,
+    counting: Counting,
     meshes: [GpuMesh; 2],
     model_pipeline: wgpu::RenderPipeline,
     clear_pipeline: wgpu::RenderPipeline,
     count_pipeline: wgpu::ComputePipeline,
+    readback: Option<ReadbackTarget>,
     draw_layout: wgpu::BindGroupLayout,
     count_layout: wgpu::BindGroupLayout,
     class_view: wgpu::TextureView,
@@ -174,19 +200,49 @@ pub struct GpuEnergy {
 }
 
 const CLASS_FORMAT: wgpu::TextureFormat = wgpu::TextureFormat::R8Uint;
+const COLOUR_FORMAT: wgpu::TextureFormat = wgpu::TextureFormat::Rgba8Unorm;
+
+/// What distinguishes one render pipeline from another.
+struct PipelineSpec {
+    label: &'static str,
+    vertex: &'static str,
+    fragment: &'static str,
+    format: wgpu::TextureFormat,
+    blend: Option<wgpu::BlendState>,
+    write_mask: wgpu::ColorWrites,
+    depth_compare: wgpu::CompareFunction,
+    depth_write: bool,
+}
 const DEPTH_FORMAT: wgpu::TextureFormat = wgpu::TextureFormat::Depth32Float;
 
 impl GpuEnergy {
     /// Open the best adapter (see [`adapter`]) and build the engine for `scene`.
     pub fn new(scene: Scene, region: Region) -> Result<GpuEnergy, GpuError> {
-        Self::with_context(adapter::open()?, scene, region)
+        Self::with_context(adapter::open()?, scene, region, Counting::Histogram)
+    }
+
+    /// The paper's architecture on the same adapter (always full frame).
+    pub fn readback_baseline(scene: Scene) -> Result<GpuEnergy, GpuError> {
+        Self::with_context(
+            adapter::open()?,
+            scene,
+            Region::FullFrame,
+            Counting::Readback,
+        )
     }
 
     pub fn with_context(
         ctx: GpuContext,
         scene: Scene,
         region: Region,
+        counting: Counting,
     ) -> Result<GpuEnergy, GpuError> {
+        // The baseline reads the whole target back, as the paper does.
+        let region = if counting == Counting::Readback {
+            Region::FullFrame
+        } else {
+            region
+        };
         let device = &ctx.device;
         let (mut mask_w, mut mask_h) = (1, 1);
         for cam in scene.cameras.iter().flatten() {
@@ -233,7 +289,13 @@ impl GpuEnergy {
         };
         let draw_layout = device.create_bind_group_layout(&wgpu::BindGroupLayoutDescriptor {
             label: Some("draws"),
-            entries: &[storage(0, true, wgpu::ShaderStages::VERTEX)],
+            entries: &[
+                storage(0, true, wgpu::ShaderStages::VERTEX_FRAGMENT),
+                wgpu::BindGroupLayoutEntry {
+                    visibility: wgpu::ShaderStages::FRAGMENT,
+                    ..uint_texture(1, wgpu::TextureViewDimension::D2Array)
+                },
+            ],
         });
         let count_layout = device.create_bind_group_layout(&wgpu::BindGroupLayoutDescriptor {
             label: Some("histogram"),
@@ -259,22 +321,23 @@ impl GpuEnergy {
             bind_group_layouts: &[Some(&draw_layout)],
             immediate_size: 0,
         });
-        // The two render pipelines differ only in entry point and depth test: one description.
-        let render_pipeline = |vertex_entry: &str, with_vertices: bool, compare, label| {
+        // Every render pipeline comes from this one description.
+        let render_pipeline = |spec: PipelineSpec| {
             let attributes = wgpu::vertex_attr_array![0 => Float32x3];
             let buffers = [Some(wgpu::VertexBufferLayout {
                 array_stride: 12,
                 step_mode: wgpu::VertexStepMode::Vertex,
                 attributes: &attributes,
             })];
+            let is_model = spec.vertex == "vs_model";
             device.create_render_pipeline(&wgpu::RenderPipelineDescriptor {
-                label: Some(label),
+                label: Some(spec.label),
                 layout: Some(&render_layout),
                 vertex: wgpu::VertexState {
                     module: &raster_module,
-                    entry_point: Some(vertex_entry),
+                    entry_point: Some(spec.vertex),
                     compilation_options: Default::default(),
-                    buffers: if with_vertices { &buffers } else { &[] },
+                    buffers: if is_model { &buffers } else { &[] },
                 },
                 primitive: wgpu::PrimitiveState {
                     topology: wgpu::PrimitiveTopology::TriangleList,
@@ -283,35 +346,90 @@ impl GpuEnergy {
                 },
                 depth_stencil: Some(wgpu::DepthStencilState {
                     format: DEPTH_FORMAT,
-                    depth_write_enabled: Some(true),
-                    depth_compare: Some(compare),
+                    depth_write_enabled: Some(spec.depth_write),
+                    depth_compare: Some(spec.depth_compare),
                     stencil: Default::default(),
                     bias: Default::default(),
                 }),
                 multisample: Default::default(),
                 fragment: Some(wgpu::FragmentState {
                     module: &raster_module,
-                    entry_point: Some("fs_class"),
+                    entry_point: Some(spec.fragment),
                     compilation_options: Default::default(),
                     targets: &[Some(wgpu::ColorTargetState {
-                        format: CLASS_FORMAT,
-                        blend: None,
-                        write_mask: wgpu::ColorWrites::ALL,
+                        format: spec.format,
+                        blend: spec.blend,
+                        write_mask: spec.write_mask,
                     })],
                 }),
                 multiview_mask: None,
                 cache: None,
             })
         };
+        use wgpu::CompareFunction::{Always, Equal, Less};
+        let class_spec = |label, vertex, depth_compare| PipelineSpec {
+            label,
+            vertex,
+            fragment: "fs_class",
+            format: CLASS_FORMAT,
+            blend: None,
+            write_mask: wgpu::ColorWrites::ALL,
+            depth_compare,
+            depth_write: true,
+        };
         // First drawn wins ties, as in the CPU rasteriser (strictly nearer replaces).
-        let model_pipeline =
-            render_pipeline("vs_model", true, wgpu::CompareFunction::Less, "model");
-        let clear_pipeline = render_pipeline(
-            "vs_clear",
-            false,
-            wgpu::CompareFunction::Always,
-            "clear tile",
-        );
+        let model_pipeline = render_pipeline(class_spec("model", "vs_model", Less));
+        let clear_pipeline = render_pipeline(class_spec("clear tile", "vs_clear", Always));
+        let readback = (counting == Counting::Readback).then(|| {
+            let colour_spec = |label, vertex, fragment, depth_compare, depth_write| PipelineSpec {
+                label,
+                vertex,
+                fragment,
+                format: COLOUR_FORMAT,
+                blend: None,
+                write_mask: wgpu::ColorWrites::ALL,
+                depth_compare,
+                depth_write,
+            };
+            let colour = device.create_texture(&wgpu::TextureDescriptor {
+                label: Some("colour page"),
+                size: wgpu::Extent3d {
+                    width: PAGE,
+                    height: PAGE,
+                    depth_or_array_layers: 1,
+                },
+                mip_level_count: 1,
+                sample_count: 1,
+                dimension: wgpu::TextureDimension::D2,
+                format: COLOUR_FORMAT,
+                usage: wgpu::TextureUsages::RENDER_ATTACHMENT | wgpu::TextureUsages::COPY_SRC,
+                view_formats: &[],
+            });
+            ReadbackTarget {
+                colour_view: colour.create_view(&Default::default()),
+                colour,
+                clear: render_pipeline(colour_spec(
+                    "clear colour",
+                    "vs_clear",
+                    "fs_clear_colour",
+                    Always,
+                    true,
+                )),
+                prepass: render_pipeline(PipelineSpec {
+                    write_mask: wgpu::ColorWrites::empty(),
+                    ..colour_spec("depth pre-pass", "vs_model", "fs_clear_colour", Less, true)
+                }),
+                mask: render_pipeline(colour_spec("mask", "vs_clear", "fs_mask", Always, false)),
+                colour_pass: render_pipeline(colour_spec(
+                    "model colour",
+                    "vs_model",
+                    "fs_colour",
+                    Equal,
+                    false,
+                )),
+                staging: Mutex::new(None),
+            }
+        });
         let count_pipeline = device.create_compute_pipeline(&wgpu::ComputePipelineDescriptor {
             label: Some("histogram"),
             layout: Some(
@@ -366,6 +484,8 @@ impl GpuEnergy {
             GpuMesh::new(device, &scene.lower, "lower"),
         ];
         Ok(GpuEnergy {
+            counting,
+            readback,
             frame: vec![None; scene.cameras.len()],
             class_view: class.create_view(&Default::default()),
             depth_view: depth.create_view(&Default::default()),
@@ -451,10 +571,16 @@ impl GpuEnergy {
         let draw_group = device.create_bind_group(&wgpu::BindGroupDescriptor {
             label: Some("draws"),
             layout: &self.draw_layout,
-            entries: &[wgpu::BindGroupEntry {
-                binding: 0,
-                resource: draws.as_entire_binding(),
-            }],
+            entries: &[
+                wgpu::BindGroupEntry {
+                    binding: 0,
+                    resource: draws.as_entire_binding(),
+                },
+                wgpu::BindGroupEntry {
+                    binding: 1,
+                    resource: wgpu::BindingResource::TextureView(&self.masks_view),
+                },
+            ],
         });
         let count_group = device.create_bind_group(&wgpu::BindGroupDescriptor {
             label: Some("histogram"),
@@ -601,7 +727,7 @@ impl GpuEnergy {
         Ok(energies)
     }
 
-    /// Render every tile into the atlas (page by page), count each, read the counts back.
+    /// Render every tile (page by page), count each, read the counts back.
     fn render_and_count(
         &self,
         arch: Arch,
@@ -613,14 +739,26 @@ impl GpuEnergy {
             .map(|t| (t.rect.width, t.rect.height))
             .collect();
         let placement = atlas::pack(&sizes, PAGE, MAX_TILES_PER_PAGE);
-        let n_pages = placement.last().map_or(0, |p| p.page + 1);
+        let draws = self.draw_records(arch, candidates, tiles, &placement);
+        match self.counting {
+            Counting::Histogram => self.count_histogram(arch, tiles, &placement, &draws),
+            Counting::Readback => self.count_readback(tiles, &placement, &draws),
+        }
+    }
+
+    /// Three draws per tile, in drawing order: the other arch, the scored arch's body, its BOI.
+    fn draw_records(
+        &self,
+        arch: Arch,
+        candidates: &[ArchPoses],
+        tiles: &[Tile],
+        placement: &[atlas::Placement],
+    ) -> Vec<DrawRecord> {
         let scored = self.mesh(arch);
         let other = self.mesh(arch.other());
         let other_class = self.scene.other_arch_class();
-
         let mut draws = Vec::with_capacity(tiles.len() * 3);
-        let mut records = Vec::with_capacity(tiles.len());
-        for (slot, (tile, place)) in tiles.iter().zip(&placement).enumerate() {
+        for (tile, place) in tiles.iter().zip(placement) {
             let cam = self.scene.cameras[tile.camera]
                 .as_ref()
                 .expect("tiles only for cameras");
@@ -649,13 +787,121 @@ impl GpuEnergy {
                     far: far as f32,
                     class_id: class_id as u32,
                     projected: projected as u32,
+                    mask_offset: [
+                        place.x as i32 - tile.rect.x0 as i32,
+                        place.y as i32 - tile.rect.y0 as i32,
+                    ],
+                    layer: tile.camera as u32,
+                    arch_bit: arch.mask_bit() as u32,
                     _pad: [0; 2],
                 }
             };
             draws.push(record(arch.other(), other, other_class));
             draws.push(record(arch, scored, CLASS_BODY));
             draws.push(record(arch, scored, CLASS_BOI));
-            records.push(TileRecord {
+        }
+        draws
+    }
+
+    /// Viewport and scissor of a tile: the whole image's viewport, shifted so that the tile's
+    /// region of the image lands on its place in the atlas; the scissor keeps drawing inside.
+    fn set_tile(&self, pass: &mut wgpu::RenderPass<'_>, tile: &Tile, place: &atlas::Placement) {
+        let cam = self.scene.cameras[tile.camera]
+            .as_ref()
+            .expect("tiles only for cameras");
+        let r = &tile.rect;
+        let (vw, vh) = viewport_size(cam);
+        let (vx, vy) = (place.x as f32 - r.x0 as f32, place.y as f32 - r.y0 as f32);
+        pass.set_viewport(vx, vy, vw as f32, vh as f32, 0.0, 1.0);
+        pass.set_scissor_rect(place.x, place.y, r.width, r.height);
+    }
+
+    /// The three model draws of a tile whose records start at `first`, with the pipeline set.
+    fn draw_arches(&self, pass: &mut wgpu::RenderPass<'_>, arch: Arch, first: u32) {
+        let (scored, other) = (self.mesh(arch), self.mesh(arch.other()));
+        pass.set_vertex_buffer(0, other.vertices.slice(..));
+        pass.set_index_buffer(other.indices.slice(..), wgpu::IndexFormat::Uint32);
+        pass.draw_indexed(
+            0..other.body_indices + other.boi_indices,
+            0,
+            first..first + 1,
+        );
+        pass.set_vertex_buffer(0, scored.vertices.slice(..));
+        pass.set_index_buffer(scored.indices.slice(..), wgpu::IndexFormat::Uint32);
+        if scored.body_indices > 0 {
+            pass.draw_indexed(0..scored.body_indices, 0, first + 1..first + 2);
+        }
+        if scored.boi_indices > 0 {
+            let all = scored.body_indices + scored.boi_indices;
+            pass.draw_indexed(scored.body_indices..all, 0, first + 2..first + 3);
+        }
+    }
+
+    fn begin_pass<'e>(
+        &self,
+        encoder: &'e mut wgpu::CommandEncoder,
+        colour: &wgpu::TextureView,
+    ) -> wgpu::RenderPass<'e> {
+        // Load, not clear: each tile is cleared by its own triangle (clearing costs its area).
+        fn load<V>() -> wgpu::Operations<V> {
+            wgpu::Operations {
+                load: wgpu::LoadOp::Load,
+                store: wgpu::StoreOp::Store,
+            }
+        }
+        encoder.begin_render_pass(&wgpu::RenderPassDescriptor {
+            label: Some("tiles"),
+            color_attachments: &[Some(wgpu::RenderPassColorAttachment {
+                view: colour,
+                depth_slice: None,
+                resolve_target: None,
+                ops: load(),
+            })],
+            depth_stencil_attachment: Some(wgpu::RenderPassDepthStencilAttachment {
+                view: &self.depth_view,
+                depth_ops: Some(load()),
+                stencil_ops: None,
+            }),
+            timestamp_writes: None,
+            occlusion_query_set: None,
+            multiview_mask: None,
+        })
+    }
+
+    fn read_back(&self, buffer: &wgpu::Buffer, size: u64) -> Result<Vec<u8>, GpuError> {
+        let slice = buffer.slice(..size);
+        let (tx, rx) = std::sync::mpsc::channel();
+        slice.map_async(wgpu::MapMode::Read, move |r| {
+            let _ = tx.send(r);
+        });
+        self.ctx
+            .device
+            .poll(wgpu::PollType::wait_indefinitely())
+            .map_err(|e| GpuError::Readback(e.to_string()))?;
+        rx.recv()
+            .map_err(|e| GpuError::Readback(e.to_string()))?
+            .map_err(|e| GpuError::Readback(e.to_string()))?;
+        let bytes = slice
+            .get_mapped_range()
+            .map_err(|e| GpuError::Readback(e.to_string()))?
+            .to_vec();
+        buffer.unmap();
+        Ok(bytes)
+    }
+
+    fn count_histogram(
+        &self,
+        arch: Arch,
+        tiles: &[Tile],
+        placement: &[atlas::Placement],
+        draws: &[DrawRecord],
+    ) -> Result<Vec<[u64; 6]>, GpuError> {
+        let n_pages = placement.last().map_or(0, |p| p.page + 1);
+        let records: Vec<TileRecord> = tiles
+            .iter()
+            .zip(placement)
+            .enumerate()
+            .map(|(slot, (tile, place))| TileRecord {
                 atlas_x: place.x,
                 atlas_y: place.y,
                 width: tile.rect.width,
@@ -666,22 +912,18 @@ impl GpuEnergy {
                 arch_bit: arch.mask_bit() as u32,
                 slot: slot as u32,
                 _pad: [0; 3],
-            });
-        }
+            })
+            .collect();
         // Page p's tiles are contiguous (packing is in order): its first tile index.
-        let mut first_tile = vec![0u32; n_pages];
-        for (i, p) in placement.iter().enumerate().rev() {
-            first_tile[p.page] = i as u32;
-        }
         let mut page_params = vec![0u8; n_pages * PAGE_PARAMS_STRIDE as usize];
-        for (p, &f) in first_tile.iter().enumerate() {
-            page_params[p * PAGE_PARAMS_STRIDE as usize..][..4].copy_from_slice(&f.to_le_bytes());
+        for (i, p) in placement.iter().enumerate().rev() {
+            page_params[p.page * PAGE_PARAMS_STRIDE as usize..][..4]
+                .copy_from_slice(&(i as u32).to_le_bytes());
         }
-
         let mut guard = self.batch.lock().unwrap_or_else(|e| e.into_inner());
         let batch = self.batch_with_room(&mut guard, draws.len(), tiles.len(), n_pages);
         let (device, queue) = (&self.ctx.device, &self.ctx.queue);
-        queue.write_buffer(&batch.draws, 0, bytemuck::cast_slice(&draws));
+        queue.write_buffer(&batch.draws, 0, bytemuck::cast_slice(draws));
         queue.write_buffer(&batch.tiles, 0, bytemuck::cast_slice(&records));
         queue.write_buffer(&batch.pages, 0, &page_params);
         let counts_size = (tiles.len() * 6 * 4) as u64;
@@ -694,57 +936,14 @@ impl GpuEnergy {
                 .filter(|&i| placement[i].page == page)
                 .collect();
             {
-                let mut pass = encoder.begin_render_pass(&wgpu::RenderPassDescriptor {
-                    label: Some("tiles"),
-                    color_attachments: &[Some(wgpu::RenderPassColorAttachment {
-                        view: &self.class_view,
-                        depth_slice: None,
-                        resolve_target: None,
-                        ops: wgpu::Operations {
-                            load: wgpu::LoadOp::Load,
-                            store: wgpu::StoreOp::Store,
-                        },
-                    })],
-                    depth_stencil_attachment: Some(wgpu::RenderPassDepthStencilAttachment {
-                        view: &self.depth_view,
-                        depth_ops: Some(wgpu::Operations {
-                            load: wgpu::LoadOp::Load,
-                            store: wgpu::StoreOp::Store,
-                        }),
-                        stencil_ops: None,
-                    }),
-                    timestamp_writes: None,
-                    occlusion_query_set: None,
-                    multiview_mask: None,
-                });
+                let mut pass = self.begin_pass(&mut encoder, &self.class_view);
                 pass.set_bind_group(0, &batch.draw_group, &[]);
                 for &i in &on_page {
-                    let (r, p) = (&tiles[i].rect, &placement[i]);
-                    let cam = self.scene.cameras[tiles[i].camera]
-                        .as_ref()
-                        .expect("tiles only for cameras");
-                    // The whole image's viewport, shifted so that the tile's region of the image
-                    // lands on its place in the atlas; the scissor keeps drawing inside the tile.
-                    let (vx, vy) = (p.x as f32 - r.x0 as f32, p.y as f32 - r.y0 as f32);
-                    let (vw, vh) = viewport_size(cam);
-                    pass.set_viewport(vx, vy, vw as f32, vh as f32, 0.0, 1.0);
-                    pass.set_scissor_rect(p.x, p.y, r.width, r.height);
+                    self.set_tile(&mut pass, &tiles[i], &placement[i]);
                     pass.set_pipeline(&self.clear_pipeline);
                     pass.draw(0..3, 0..1);
                     pass.set_pipeline(&self.model_pipeline);
-                    let d = (i * 3) as u32;
-                    pass.set_vertex_buffer(0, other.vertices.slice(..));
-                    pass.set_index_buffer(other.indices.slice(..), wgpu::IndexFormat::Uint32);
-                    pass.draw_indexed(0..other.body_indices + other.boi_indices, 0, d..d + 1);
-                    pass.set_vertex_buffer(0, scored.vertices.slice(..));
-                    pass.set_index_buffer(scored.indices.slice(..), wgpu::IndexFormat::Uint32);
-                    if scored.body_indices > 0 {
-                        pass.draw_indexed(0..scored.body_indices, 0, d + 1..d + 2);
-                    }
-                    if scored.boi_indices > 0 {
-                        let all = scored.body_indices + scored.boi_indices;
-                        pass.draw_indexed(scored.body_indices..all, 0, d + 2..d + 3);
-                    }
+                    self.draw_arches(&mut pass, arch, (i * 3) as u32);
                 }
             }
             let max_w = on_page
@@ -775,28 +974,145 @@ impl GpuEnergy {
         }
         encoder.copy_buffer_to_buffer(&batch.counts, 0, &batch.staging, 0, counts_size);
         queue.submit([encoder.finish()]);
-        let slice = batch.staging.slice(..counts_size);
-        let (tx, rx) = std::sync::mpsc::channel();
-        slice.map_async(wgpu::MapMode::Read, move |r| {
-            let _ = tx.send(r);
-        });
-        device
-            .poll(wgpu::PollType::wait_indefinitely())
-            .map_err(|e| GpuError::Readback(e.to_string()))?;
-        rx.recv()
-            .map_err(|e| GpuError::Readback(e.to_string()))?
-            .map_err(|e| GpuError::Readback(e.to_string()))?;
-        let counts: Vec<[u64; 6]> = {
-            let view = slice
-                .get_mapped_range()
-                .map_err(|e| GpuError::Readback(e.to_string()))?;
-            bytemuck::cast_slice::<u8, u32>(&view)
-                .chunks_exact(6)
-                .map(|c| std::array::from_fn(|k| c[k] as u64))
-                .collect()
-        };
-        batch.staging.unmap();
-        Ok(counts)
+        let bytes = self.read_back(&batch.staging, counts_size)?;
+        Ok(bytemuck::cast_slice::<u8, u32>(&bytes)
+            .chunks_exact(6)
+            .map(|c| std::array::from_fn(|k| c[k] as u64))
+            .collect())
+    }
+
+    /// The paper's architecture: per page, draw each tile in colour, copy every tile to the
+    /// CPU whole, classify its pixels' colours on one thread.
+    fn count_readback(
+        &self,
+        tiles: &[Tile],
+        placement: &[atlas::Placement],
+        draws: &[DrawRecord],
+    ) -> Result<Vec<[u64; 6]>, GpuError> {
+        let target = self
+            .readback
+            .as_ref()
+            .expect("a readback engine has its colour target");
+        let n_pages = placement.last().map_or(0, |p| p.page + 1);
+        let row_bytes = |w: u32| (w * 4).next_multiple_of(wgpu::COPY_BYTES_PER_ROW_ALIGNMENT);
+        let mut guard = self.batch.lock().unwrap_or_else(|e| e.into_inner());
+        let batch = self.batch_with_room(&mut guard, draws.len(), tiles.len(), n_pages);
+        let (device, queue) = (&self.ctx.device, &self.ctx.queue);
+        queue.write_buffer(&batch.draws, 0, bytemuck::cast_slice(draws));
+        let mut out = vec![[0u64; 6]; tiles.len()];
+        for page in 0..n_pages {
+            let on_page: Vec<usize> = (0..tiles.len())
+                .filter(|&i| placement[i].page == page)
+                .collect();
+            let offsets: Vec<u64> = on_page
+                .iter()
+                .scan(0u64, |acc, &i| {
+                    let at = *acc;
+                    *acc += row_bytes(tiles[i].rect.width) as u64 * tiles[i].rect.height as u64;
+                    Some(at)
+                })
+                .collect();
+            let total: u64 = on_page
+                .iter()
+                .map(|&i| row_bytes(tiles[i].rect.width) as u64 * tiles[i].rect.height as u64)
+                .sum();
+            let mut staging_slot = target.staging.lock().unwrap_or_else(|e| e.into_inner());
+            if staging_slot.as_ref().is_none_or(|(_, cap)| *cap < total) {
+                let buffer = device.create_buffer(&wgpu::BufferDescriptor {
+                    label: Some("colour readback"),
+                    size: total,
+                    usage: wgpu::BufferUsages::MAP_READ | wgpu::BufferUsages::COPY_DST,
+                    mapped_at_creation: false,
+                });
+                *staging_slot = Some((buffer, total));
+            }
+            let staging = &staging_slot.as_ref().expect("just made").0;
+            let mut encoder = device.create_command_encoder(&wgpu::CommandEncoderDescriptor {
+                label: Some("readback"),
+            });
+            {
+                let mut pass = self.begin_pass(&mut encoder, &target.colour_view);
+                pass.set_bind_group(0, &batch.draw_group, &[]);
+                for &i in &on_page {
+                    let first = (i * 3) as u32;
+                    self.set_tile(&mut pass, &tiles[i], &placement[i]);
+                    pass.set_pipeline(&target.clear);
+                    pass.draw(0..3, 0..1);
+                    pass.set_pipeline(&target.prepass);
+                    self.draw_arches(&mut pass, tiles_arch(draws, first), first);
+                    pass.set_pipeline(&target.mask);
+                    pass.draw(0..3, first + 1..first + 2);
+                    pass.set_pipeline(&target.colour_pass);
+                    self.draw_arches(&mut pass, tiles_arch(draws, first), first);
+                }
+            }
+            for (&i, &offset) in on_page.iter().zip(&offsets) {
+                let (r, p) = (&tiles[i].rect, &placement[i]);
+                encoder.copy_texture_to_buffer(
+                    wgpu::TexelCopyTextureInfo {
+                        texture: &target.colour,
+                        mip_level: 0,
+                        origin: wgpu::Origin3d {
+                            x: p.x,
+                            y: p.y,
+                            z: 0,
+                        },
+                        aspect: wgpu::TextureAspect::All,
+                    },
+                    wgpu::TexelCopyBufferInfo {
+                        buffer: staging,
+                        layout: wgpu::TexelCopyBufferLayout {
+                            offset,
+                            bytes_per_row: Some(row_bytes(r.width)),
+                            rows_per_image: Some(r.height),
+                        },
+                    },
+                    wgpu::Extent3d {
+                        width: r.width,
+                        height: r.height,
+                        depth_or_array_layers: 1,
+                    },
+                );
+            }
+            queue.submit([encoder.finish()]);
+            let bytes = self.read_back(staging, total)?;
+            for (&i, &offset) in on_page.iter().zip(&offsets) {
+                let r = &tiles[i].rect;
+                let stride = row_bytes(r.width) as usize;
+                let bins = &mut out[i];
+                for y in 0..r.height as usize {
+                    let row = &bytes[offset as usize + y * stride..][..r.width as usize * 4];
+                    for px in row.chunks_exact(4) {
+                        bins[colour_bin(px)] += 1;
+                    }
+                }
+            }
+        }
+        Ok(out)
+    }
+}
+
+/// The scored arch of a tile, from its body draw's label bit.
+fn tiles_arch(draws: &[DrawRecord], first: u32) -> Arch {
+    if draws[first as usize + 1].arch_bit == Arch::Upper.mask_bit() as u32 {
+        Arch::Upper
+    } else {
+        Arch::Lower
+    }
+}
+
+/// The paper's colour counting: white = mask uncovered, pink = mask under the body, light
+/// green = mask under the BOI, dark red = body off the mask, dark green = BOI off the mask
+/// (the paper's #Pixel_DGreen), black = neither. Alpha 0.5 puts the halves at 127/128.
+fn colour_bin(rgba: &[u8]) -> usize {
+    let (r, g, b) = (rgba[0], rgba[1], rgba[2]);
+    match (r >= 192, g >= 192, b >= 192) {
+        (true, true, true) => 3,
+        (true, false, _) => 4,
+        (false, true, _) => 5,
+        _ if r >= 64 => 1,
+        _ if g >= 64 => 2,
+        _ => 0,
     }
 }
 
