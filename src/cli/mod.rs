@@ -1,5 +1,6 @@
 //! clap commands: the only place that prints or uses anyhow.
 
+mod bench;
 mod demo;
 mod energy;
 mod mesh;
@@ -31,6 +32,9 @@ enum Command {
     /// Mesh tools.
     #[command(subcommand)]
     Mesh(mesh::Command),
+    /// Benchmarks for performance engineers.
+    #[command(subcommand)]
+    Bench(bench::Command),
 }
 
 pub fn main() -> ExitCode {
@@ -41,6 +45,7 @@ pub fn main() -> ExitCode {
         Command::Validate(a) => validate::run(a),
         Command::Energy(a) => energy::run(a),
         Command::Mesh(c) => mesh::run(c),
+        Command::Bench(c) => bench::run(c),
     };
     match result {
         Ok(()) => ExitCode::SUCCESS,

@@ -7,7 +7,7 @@ use std::cell::RefCell;
 
 use rayon::prelude::*;
 
-use super::raster::{self, CLASS_BODY, CLASS_BOI, Target};
+use super::raster::{self, CLASS_BODY, CLASS_BOI, Placed, Target};
 use super::{Counts, Energy, EnergyEngine, Region, Scene, counts_with_outside};
 use crate::capture::{Arch, ArchPoses, FrameMasks, LabelMask};
 use crate::error::Result;
@@ -27,8 +27,8 @@ pub struct CpuEnergy {
 
 #[derive(Default)]
 struct Scratch {
-    points: Vec<[f32; 3]>,
-    other_points: Vec<[f32; 3]>,
+    scored: Placed,
+    other: Placed,
     target: Target,
 }
 
@@ -44,7 +44,7 @@ impl CpuEnergy {
     pub fn with_region(scene: Scene, region: Region) -> Self {
         let n = scene.cameras.len();
         CpuEnergy {
-            scene,
+            scene: scene.compacted(),
             region,
             frame: (0..n).map(|_| None).collect(),
         }
@@ -80,30 +80,27 @@ fn render(
     let mesh = scene.mesh(arch);
     let other = scene.mesh(arch.other());
     let cam_from = |p: &crate::geometry::Pose| cam.camera_from_world.compose(p);
-    raster::to_camera_space(mesh, &cam_from(poses.get(arch)), &mut s.points);
-    raster::to_camera_space(
-        other,
-        &cam_from(poses.get(arch.other())),
-        &mut s.other_points,
-    );
+    s.scored.place(cam, mesh, &cam_from(poses.get(arch)));
+    s.other
+        .place(cam, other, &cam_from(poses.get(arch.other())));
     let other_class = scene.other_arch_class();
     let rect = match region {
         Region::FullFrame => raster::Rect::full(cam.width, cam.height),
         Region::Footprint if other_class != raster::CLASS_NONE => {
-            raster::footprint(cam, &s.points).union(&raster::footprint(cam, &s.other_points))
+            s.scored.footprint(cam).union(&s.other.footprint(cam))
         }
-        Region::Footprint => raster::footprint(cam, &s.points),
+        Region::Footprint => s.scored.footprint(cam),
     };
     s.target.reset(rect);
     raster::rasterise(
         cam,
         other,
-        &s.other_points,
+        &s.other,
         other_class,
         other_class,
         &mut s.target,
     );
-    raster::rasterise(cam, mesh, &s.points, CLASS_BODY, CLASS_BOI, &mut s.target);
+    raster::rasterise(cam, mesh, &s.scored, CLASS_BODY, CLASS_BOI, &mut s.target);
 }
 
 /// The six bins over the whole mask: counted inside the target, derived outside it.

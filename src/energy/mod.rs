@@ -2,6 +2,7 @@
 //! cameras. Every backend implements [`EnergyEngine`]: a batch of candidate poses in, one
 //! [`Energy`] (six counts per camera) out for each.
 
+pub mod backend;
 pub mod cpu;
 pub mod gpu;
 pub mod raster;
@@ -10,6 +11,7 @@ use crate::capture::{Arch, ArchPoses, Capture, FrameMasks, MaskMode, Mesh};
 use crate::error::Result;
 use crate::geometry::Camera;
 
+pub use backend::{Backend, OpenedEngine, open_engine};
 pub use cpu::CpuEnergy;
 
 /// The paper's weight of the boundary term.
@@ -112,6 +114,15 @@ impl Scene {
             upper: capture.upper.clone(),
             lower: capture.lower.clone(),
             mode: capture.mask_mode,
+        }
+    }
+
+    /// The scene with unused vertices dropped from both meshes (what engines render).
+    pub fn compacted(self) -> Scene {
+        Scene {
+            upper: self.upper.compacted(),
+            lower: self.lower.compacted(),
+            ..self
         }
     }
 

@@ -103,8 +103,8 @@ pub fn to_camera_space(mesh: &Mesh, camera_from_model: &Pose, out: &mut Vec<[f32
     }));
 }
 
-/// The pixel rectangle a set of camera-space points can touch, clamped to the image
-/// (the whole image if a point is behind the near plane).
+/// A conservative pixel rectangle a set of camera-space points can touch (e.g. a bounding
+/// box's corners), clamped to the image; the whole image if a point is behind the near plane.
 pub fn footprint(cam: &Camera, points: &[[f32; 3]]) -> Rect {
     let (mut lo, mut hi) = ([f64::INFINITY; 2], [f64::NEG_INFINITY; 2]);
     for p in points {
@@ -138,12 +138,84 @@ pub fn footprint(cam: &Camera, points: &[[f32; 3]]) -> Rect {
     }
 }
 
-/// Rasterise a mesh whose vertices are already in camera space. Faces get `class_body`,
-/// or `class_boi` where the mesh marks them as boundary of interest.
+/// A mesh placed in front of a camera: its vertices in camera space and their snapped
+/// framebuffer positions, each projected once.
+#[derive(Debug, Clone, Default)]
+pub struct Placed {
+    pub points: Vec<[f32; 3]>,
+    /// `None` behind the near plane or outside the guard band.
+    projected: Vec<Option<Snapped>>,
+    /// Some vertex is behind the near plane (its triangles are clipped).
+    crosses_near: bool,
+}
+
+/// A vertex's snapped framebuffer position (1/256 pixel units) and 1/z.
+type Snapped = (i64, i64, f32);
+
+impl Placed {
+    /// Transform and project every vertex of `mesh` (compact it first: see `Mesh::compacted`).
+    pub fn place(&mut self, cam: &Camera, mesh: &Mesh, camera_from_model: &Pose) {
+        to_camera_space(mesh, camera_from_model, &mut self.points);
+        let proj = Projector::new(cam);
+        self.projected.clear();
+        self.crosses_near = false;
+        for p in &self.points {
+            if (p[2] as f64) < NEAR_MM {
+                self.crosses_near = true;
+                self.projected.push(None);
+            } else {
+                self.projected.push(proj.project(p));
+            }
+        }
+    }
+
+    /// The pixels whose centres the placed mesh can cover, exactly (from the snapped
+    /// positions); the whole image when part of it is behind the near plane.
+    pub fn footprint(&self, cam: &Camera) -> Rect {
+        if self.crosses_near {
+            return Rect::full(cam.width, cam.height);
+        }
+        let mut lo = (i64::MAX, i64::MAX);
+        let mut hi = (i64::MIN, i64::MIN);
+        for &(x, y, _) in self.projected.iter().flatten() {
+            lo = (lo.0.min(x), lo.1.min(y));
+            hi = (hi.0.max(x), hi.1.max(y));
+        }
+        if lo.0 > hi.0 {
+            return Rect::full(0, 0);
+        }
+        let clamp = |v: i64, max: u32| v.clamp(0, max as i64) as u32;
+        let (x0, y0) = (
+            clamp(ceil_div(lo.0 - HALF_PIXEL), cam.width),
+            clamp(ceil_div(lo.1 - HALF_PIXEL), cam.height),
+        );
+        let (x1, y1) = (
+            clamp(floor_div(hi.0 - HALF_PIXEL) + 1, cam.width),
+            clamp(floor_div(hi.1 - HALF_PIXEL) + 1, cam.height),
+        );
+        Rect {
+            x0,
+            y0,
+            width: x1.saturating_sub(x0),
+            height: y1.saturating_sub(y0),
+        }
+    }
+}
+
+fn floor_div(n: i64) -> i64 {
+    n.div_euclid(1 << SUBPIXEL_BITS)
+}
+
+fn ceil_div(n: i64) -> i64 {
+    -(-n).div_euclid(1 << SUBPIXEL_BITS)
+}
+
+/// Rasterise a placed mesh into `target`. Faces get `class_body`, or `class_boi` where the
+/// mesh marks them as boundary of interest.
 pub fn rasterise(
     cam: &Camera,
     mesh: &Mesh,
-    cam_points: &[[f32; 3]],
+    placed: &Placed,
     class_body: u8,
     class_boi: u8,
     target: &mut Target,
@@ -155,17 +227,25 @@ pub fn rasterise(
     let proj = Projector::new(cam);
     for (tri, &is_boi) in mesh.triangles.iter().zip(&mesh.boi) {
         let class = if is_boi { class_boi } else { class_body };
-        let v = tri.map(|i| cam_points[i as usize]);
+        let s = tri.map(|i| placed.projected[i as usize]);
+        if let [Some(a), Some(b), Some(c)] = s {
+            raster_triangle([a, b, c], class, rect, target);
+            continue;
+        }
+        if !placed.crosses_near {
+            continue; // outside the guard band
+        }
+        let v = tri.map(|i| placed.points[i as usize]);
         let behind = v.iter().filter(|p| (p[2] as f64) < NEAR_MM).count();
-        match behind {
-            0 => raster_triangle(&proj, &v, class, rect, target),
-            3 => {}
-            _ => {
-                let poly = clip_near(&v);
-                for k in 1..poly.len().saturating_sub(1) {
-                    raster_triangle(&proj, &[poly[0], poly[k], poly[k + 1]], class, rect, target);
-                }
-            }
+        if behind == 3 {
+            continue;
+        }
+        let poly: Vec<Snapped> = clip_near(&v)
+            .iter()
+            .filter_map(|p| proj.project(p))
+            .collect();
+        for k in 1..poly.len().saturating_sub(1) {
+            raster_triangle([poly[0], poly[k], poly[k + 1]], class, rect, target);
         }
     }
 }
@@ -223,20 +303,8 @@ fn is_top_left(dx: i64, dy: i64) -> bool {
     (dy == 0 && dx > 0) || dy < 0
 }
 
-fn raster_triangle(
-    proj: &Projector,
-    v: &[[f32; 3]; 3],
-    class: u8,
-    rect: Rect,
-    target: &mut Target,
-) {
-    let (Some(mut a), Some(mut b), Some(c)) = (
-        proj.project(&v[0]),
-        proj.project(&v[1]),
-        proj.project(&v[2]),
-    ) else {
-        return;
-    };
+fn raster_triangle(v: [Snapped; 3], class: u8, rect: Rect, target: &mut Target) {
+    let [mut a, mut b, c] = v;
     let mut area = (b.0 - a.0) * (c.1 - a.1) - (b.1 - a.1) * (c.0 - a.0);
     if area == 0 {
         return;
@@ -246,8 +314,6 @@ fn raster_triangle(
         area = -area;
     }
     // Pixels whose centres (x·256 + 128) lie within the snapped bounds.
-    let floor_div = |n: i64| n.div_euclid(1 << SUBPIXEL_BITS);
-    let ceil_div = |n: i64| -(-n).div_euclid(1 << SUBPIXEL_BITS);
     let px0 = ceil_div(a.0.min(b.0).min(c.0) - HALF_PIXEL).max(rect.x0 as i64);
     let px1 = floor_div(a.0.max(b.0).max(c.0) - HALF_PIXEL).min((rect.x0 + rect.width) as i64 - 1);
     let py0 = ceil_div(a.1.min(b.1).min(c.1) - HALF_PIXEL).max(rect.y0 as i64);
@@ -301,16 +367,12 @@ fn raster_triangle(
 /// A label image over the whole image: each mesh drawn at its pose with its label,
 /// depth-tested (what a perfect segmentation of those meshes would show).
 pub fn render_labels(cam: &Camera, items: &[(&Mesh, &Pose, u8)]) -> Vec<u8> {
-    let mut points = Vec::new();
+    let mut placed = Placed::default();
     let mut target = Target::default();
     target.reset(Rect::full(cam.width, cam.height));
     for (mesh, world_from_model, label) in items {
-        to_camera_space(
-            mesh,
-            &cam.camera_from_world.compose(world_from_model),
-            &mut points,
-        );
-        rasterise(cam, mesh, &points, *label, *label, &mut target);
+        placed.place(cam, mesh, &cam.camera_from_world.compose(world_from_model));
+        rasterise(cam, mesh, &placed, *label, *label, &mut target);
     }
     target.class
 }
@@ -343,11 +405,11 @@ mod tests {
     }
 
     fn render(cam: &Camera, mesh: &Mesh, pose: &Pose) -> Target {
-        let mut pts = Vec::new();
-        to_camera_space(mesh, pose, &mut pts);
+        let mut placed = Placed::default();
+        placed.place(cam, mesh, pose);
         let mut t = Target::default();
         t.reset(Rect::full(cam.width, cam.height));
-        rasterise(cam, mesh, &pts, CLASS_BODY, CLASS_BOI, &mut t);
+        rasterise(cam, mesh, &placed, CLASS_BODY, CLASS_BOI, &mut t);
         t
     }
 
@@ -437,13 +499,36 @@ mod tests {
         let m = square(-7.3, -3.1, 9.9, 12.2, 90.0);
         let pose = Pose::from_euler_tuple(&[0.2, -0.3, 0.4, 1.0, 2.0, 5.0]);
         let full = render(&cam, &m, &pose);
-        let mut pts = Vec::new();
-        to_camera_space(&m, &pose, &mut pts);
-        let r = footprint(&cam, &pts);
-        let mut t = Target::default();
-        t.reset(r);
-        rasterise(&cam, &m, &pts, CLASS_BODY, CLASS_BOI, &mut t);
-        assert_eq!(count(&t, CLASS_BODY), count(&full, CLASS_BODY));
-        assert!(count(&t, CLASS_BODY) > 100);
+        let mut placed = Placed::default();
+        placed.place(&cam, &m, &pose);
+        for r in [placed.footprint(&cam), footprint(&cam, &placed.points)] {
+            let mut t = Target::default();
+            t.reset(r);
+            rasterise(&cam, &m, &placed, CLASS_BODY, CLASS_BOI, &mut t);
+            assert_eq!(count(&t, CLASS_BODY), count(&full, CLASS_BODY));
+            assert!(count(&t, CLASS_BODY) > 100);
+        }
+        // The footprint from the snapped vertices is tight: the covered pixels' bounding box,
+        // at most a pixel larger on a side (a centre inside the vertices' bounds but off a
+        // pointed corner of the triangle).
+        let covered: Vec<usize> = (0..full.class.len())
+            .filter(|&i| full.class[i] == CLASS_BODY)
+            .collect();
+        let (xs, ys): (Vec<u32>, Vec<u32>) = covered
+            .iter()
+            .map(|i| ((i % 100) as u32, (i / 100) as u32))
+            .unzip();
+        let r = placed.footprint(&cam);
+        let (cx0, cx1) = (*xs.iter().min().unwrap(), *xs.iter().max().unwrap());
+        let (cy0, cy1) = (*ys.iter().min().unwrap(), *ys.iter().max().unwrap());
+        let (rx1, ry1) = (r.x0 + r.width - 1, r.y0 + r.height - 1);
+        assert!(
+            r.x0 <= cx0 && r.x0 + 1 >= cx0 && rx1 >= cx1 && rx1 <= cx1 + 1,
+            "{r:?} vs x {cx0}..={cx1}"
+        );
+        assert!(
+            r.y0 <= cy0 && r.y0 + 1 >= cy0 && ry1 >= cy1 && ry1 <= cy1 + 1,
+            "{r:?} vs y {cy0}..={cy1}"
+        );
     }
 }

@@ -175,6 +175,32 @@ impl Mesh {
         (lo, hi)
     }
 
+    /// A copy without the vertices no face uses (renumbered): what a renderer needs. A
+    /// simplified mesh keeps every vertex of the file to keep its numbering.
+    pub fn compacted(&self) -> Mesh {
+        let mut new_index = vec![u32::MAX; self.positions.len()];
+        let mut positions = Vec::new();
+        let triangles = self
+            .triangles
+            .iter()
+            .map(|t| {
+                t.map(|v| {
+                    let slot = &mut new_index[v as usize];
+                    if *slot == u32::MAX {
+                        *slot = positions.len() as u32;
+                        positions.push(self.positions[v as usize]);
+                    }
+                    *slot
+                })
+            })
+            .collect();
+        Mesh {
+            positions,
+            triangles,
+            boi: self.boi.clone(),
+        }
+    }
+
     /// A copy with at most `max_triangles` triangles (meshoptimizer), keeping the file's
     /// vertex numbering and the BOI: body and BOI are simplified apart with their borders locked.
     pub fn simplified(&self, max_triangles: usize) -> Mesh {

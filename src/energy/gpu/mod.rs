@@ -243,6 +243,7 @@ impl GpuEnergy {
         } else {
             region
         };
+        let scene = scene.compacted();
         let device = &ctx.device;
         let (mut mask_w, mut mask_h) = (1, 1);
         for cam in scene.cameras.iter().flatten() {
