@@ -1,12 +1,15 @@
-//! CPU reference energy and synthesis benchmarks (criterion), one group per stage.
-//! Run: `cargo bench --bench energy`. Needs ../shared/data/scan-tag0 for the real-scan cases
-//! (skipped with a message when absent).
+//! Energy and synthesis benchmarks (criterion), one group per stage: the CPU reference, the
+//! GPU histogram engine and the readback baseline (GPU groups are skipped, with a message, when
+//! there is no adapter). Run: `cargo bench --bench energy`. Needs ../shared/data/scan-tag0 for
+//! the real-scan cases (skipped with a message when absent). `jawtrack bench energy` prints the
+//! same comparison as a table.
 
 use std::path::Path;
 
 use criterion::{BenchmarkId, Criterion, criterion_group, criterion_main};
 use jawtrack::capture::{Arch, ArchPoses, Capture, OpenOptions};
-use jawtrack::energy::{CpuEnergy, EnergyEngine, Scene};
+use jawtrack::energy::gpu::GpuEnergy;
+use jawtrack::energy::{CpuEnergy, EnergyEngine, Region, Scene};
 use jawtrack::synth::{Preset, SynthOptions, generate};
 
 fn capture(meshes: Option<&Path>, dir: &Path, max_triangles: Option<usize>) -> Capture {
@@ -36,7 +39,6 @@ fn bench_energy(c: &mut Criterion) {
             scans.display()
         );
     }
-    let mut group = c.benchmark_group("cpu_energy_3_cameras");
     for (name, meshes, max_tris) in cases {
         let dir = tmp.path().join(if meshes.is_some() {
             "scan"
@@ -44,25 +46,45 @@ fn bench_energy(c: &mut Criterion) {
             "procedural"
         });
         let cap = capture(meshes, &dir, max_tris);
-        let mut engine = CpuEnergy::new(Scene::from_capture(&cap));
-        engine.set_frame(&cap.load_masks(4).unwrap()).unwrap();
+        let scene = Scene::from_capture(&cap);
+        let masks = cap.load_masks(4).unwrap();
         let truth: ArchPoses = cap.gt_poses(4).unwrap();
-        group.bench_function(BenchmarkId::new("single", name), |b| {
-            b.iter(|| engine.evaluate(Arch::Lower, &[truth]).unwrap())
-        });
         let batch: Vec<ArchPoses> = (0..64)
             .map(|k| {
                 let d = [0.0, 0.0, 0.0, 0.01 * k as f64, 0.0, 0.0];
                 truth.with(Arch::Lower, truth.lower.with_euler_offset(&d))
             })
             .collect();
-        group.throughput(criterion::Throughput::Elements(64));
-        group.bench_function(BenchmarkId::new("batch64", name), |b| {
-            b.iter(|| engine.evaluate(Arch::Lower, &batch).unwrap())
-        });
-        group.throughput(criterion::Throughput::Elements(1));
+        let mut engines: Vec<(String, Box<dyn EnergyEngine>)> = Vec::new();
+        for region in [Region::Footprint, Region::FullFrame] {
+            engines.push((
+                format!("cpu-{region:?}"),
+                Box::new(CpuEnergy::with_region(scene.clone(), region)),
+            ));
+            match GpuEnergy::new(scene.clone(), region) {
+                Ok(g) => engines.push((format!("gpu-{region:?}"), Box::new(g))),
+                Err(e) => eprintln!("no GPU group: {e}"),
+            }
+        }
+        if let Ok(g) = GpuEnergy::readback_baseline(scene.clone()) {
+            engines.push(("readback".into(), Box::new(g)));
+        }
+        let mut group = c.benchmark_group(format!("energy_3_cameras/{name}"));
+        group.sample_size(10);
+        for (label, engine) in &mut engines {
+            engine.set_frame(&masks).unwrap();
+            let engine = &*engine;
+            group.throughput(criterion::Throughput::Elements(1));
+            group.bench_function(BenchmarkId::new(label.as_str(), "single"), |b| {
+                b.iter(|| engine.evaluate(Arch::Lower, &[truth]).unwrap())
+            });
+            group.throughput(criterion::Throughput::Elements(64));
+            group.bench_function(BenchmarkId::new(label.as_str(), "batch64"), |b| {
+                b.iter(|| engine.evaluate(Arch::Lower, &batch).unwrap())
+            });
+        }
+        group.finish();
     }
-    group.finish();
 }
 
 fn bench_synth(c: &mut Criterion) {

@@ -3,7 +3,7 @@ use std::time::Instant;
 
 use anyhow::{Context, anyhow};
 use jawtrack::capture::{Arch, ArchPoses, Capture, OpenOptions, read_pose_file};
-use jawtrack::energy::{CpuEnergy, DEFAULT_LAMBDA, Energy, EnergyEngine, Scene};
+use jawtrack::energy::{Backend, DEFAULT_LAMBDA, Energy, Region, Scene, open_engine};
 
 #[derive(clap::Args)]
 pub struct Args {
@@ -25,6 +25,20 @@ pub struct Args {
     /// Simplify each arch to at most this many triangles at load.
     #[arg(long)]
     pub max_triangles: Option<usize>,
+    #[command(flatten)]
+    pub engine: EngineArgs,
+}
+
+/// How energies are evaluated (shared by every command that evaluates them).
+#[derive(clap::Args, Clone, Copy)]
+pub struct EngineArgs {
+    /// Energy backend: `auto` takes a hardware GPU adapter when there is one and the CPU
+    /// reference otherwise; `JAWTRACK_ADAPTER=substring` picks an adapter by name.
+    #[arg(long, value_enum, default_value_t = Backend::Auto)]
+    pub backend: Backend,
+    /// Render and count only where the arch can be (`footprint`) or every pixel.
+    #[arg(long, value_enum, default_value_t = Region::Footprint)]
+    pub region: Region,
 }
 
 pub fn run(a: Args) -> anyhow::Result<()> {
@@ -62,9 +76,14 @@ pub fn run(a: Args) -> anyhow::Result<()> {
         upper: pick(&a.upper, Arch::Upper)?,
         lower: pick(&a.lower, Arch::Lower)?,
     };
-    let mut engine = CpuEnergy::new(Scene::from_capture(&capture));
+    let opened = open_engine(
+        a.engine.backend,
+        Scene::from_capture(&capture),
+        a.engine.region,
+    )?;
+    eprintln!("backend: {}", opened.choice);
+    let mut engine = opened.engine;
     engine.set_frame(&capture.load_masks(a.frame)?)?;
-    eprintln!("backend: {}", engine.name());
     println!("frame {}  lambda {}", a.frame, a.lambda);
     println!(
         "arch   camera  mask_px  uncovered  boi_outside  total      off/none off/body off/boi on/none on/body on/boi"
