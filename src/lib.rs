@@ -9,5 +9,6 @@ pub mod energy;
 pub mod error;
 pub mod geometry;
 pub mod synth;
+pub mod track;
 
 pub use error::{Error, Result};

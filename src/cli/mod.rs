@@ -4,7 +4,9 @@ mod bench;
 mod demo;
 mod energy;
 mod mesh;
+mod score;
 mod synth;
+mod track;
 mod validate;
 
 use std::process::ExitCode;
@@ -27,6 +29,10 @@ enum Command {
     Synth(synth::Args),
     /// Check a capture and print a summary, or what is wrong.
     Validate(validate::Args),
+    /// Track both arches through a capture and write tracks.json.
+    Track(track::Args),
+    /// Score a tracks.json against the capture's ground truth.
+    Score(score::Args),
     /// Print the energy terms of a frame per camera and arch.
     Energy(energy::Args),
     /// Mesh tools.
@@ -43,6 +49,8 @@ pub fn main() -> ExitCode {
         Command::Demo(a) => demo::run(a),
         Command::Synth(a) => synth::run(a),
         Command::Validate(a) => validate::run(a),
+        Command::Track(a) => track::run(a),
+        Command::Score(a) => score::run(a),
         Command::Energy(a) => energy::run(a),
         Command::Mesh(c) => mesh::run(c),
         Command::Bench(c) => bench::run(c),

@@ -364,15 +364,15 @@ fn raster_triangle(v: [Snapped; 3], class: u8, rect: Rect, target: &mut Target) 
     }
 }
 
-/// A label image over the whole image: each mesh drawn at its pose with its label,
-/// depth-tested (what a perfect segmentation of those meshes would show).
-pub fn render_labels(cam: &Camera, items: &[(&Mesh, &Pose, u8)]) -> Vec<u8> {
+/// A label image over the whole image: each mesh drawn at its pose with its labels (body,
+/// boundary of interest), depth-tested: what a perfect segmentation of those meshes shows.
+pub fn render_labels(cam: &Camera, items: &[(&Mesh, &Pose, u8, u8)]) -> Vec<u8> {
     let mut placed = Placed::default();
     let mut target = Target::default();
     target.reset(Rect::full(cam.width, cam.height));
-    for (mesh, world_from_model, label) in items {
+    for (mesh, world_from_model, body, boi) in items {
         placed.place(cam, mesh, &cam.camera_from_world.compose(world_from_model));
-        rasterise(cam, mesh, &placed, *label, *label, &mut target);
+        rasterise(cam, mesh, &placed, *body, *boi, &mut target);
     }
     target.class
 }

@@ -225,7 +225,12 @@ impl Session {
             0.0
         };
         let repeats = if opts.preset == Preset::Hard { 2 } else { 1 };
-        exercise_controls(tau, repeats, &self.gain)
+        let segments = if opts.frames >= tmj::FULL_EXERCISE_FRAMES {
+            tmj::ALL_SEGMENTS
+        } else {
+            tmj::CORE_SEGMENTS
+        };
+        exercise_controls(tau, segments, repeats, &self.gain)
     }
 
     /// Slow head motion: about ±2° and ±2 mm, periods of 4 to 9 s, about the incisors.
@@ -287,12 +292,12 @@ fn render_mask(
     let mut labels = render_labels(
         cam,
         &[
-            (&s.upper, &poses.upper, UPPER_LABEL),
-            (&s.lower, &poses.lower, LOWER_LABEL),
+            (&s.upper, &poses.upper, UPPER_LABEL, UPPER_LABEL),
+            (&s.lower, &poses.lower, LOWER_LABEL, LOWER_LABEL),
         ],
     );
     let alone = |mesh: &Mesh, pose: &Pose| {
-        render_labels(cam, &[(mesh, pose, 1)])
+        render_labels(cam, &[(mesh, pose, 1, 1)])
             .iter()
             .filter(|&&l| l != 0)
             .count() as u64

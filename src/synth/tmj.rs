@@ -111,9 +111,10 @@ impl JawModel {
     }
 }
 
-/// The exercise a subject is asked to perform, as keyed controls; it is played smoothly
-/// (cosine easing between keys) over the capture, `repeats` times.
-const EXERCISE: [(f64, f64, f64); 17] = [
+/// The exercise a subject is asked to perform, as keyed controls (open, lateral, protrusion),
+/// played smoothly (cosine easing between keys). The first `CORE_SEGMENTS` segments reach the
+/// whole range (wide opening, left, right, protrusion); the rest combine them.
+const EXERCISE: [(f64, f64, f64); 18] = [
     (0.0, 0.0, 0.0),
     (1.0, 0.0, 0.0), // open wide
     (0.0, 0.0, 0.0),
@@ -122,6 +123,7 @@ const EXERCISE: [(f64, f64, f64); 17] = [
     (0.08, -1.0, 0.0), // right excursion
     (0.0, 0.0, 0.0),
     (0.03, 0.0, 1.0), // protrusion
+    (0.0, 0.0, 0.0),  // end of the core exercise
     (0.45, 0.0, 0.6), // open while protruded
     (0.0, 0.0, 0.0),
     (0.6, 0.6, 0.0), // open to the left
@@ -133,10 +135,18 @@ const EXERCISE: [(f64, f64, f64); 17] = [
     (0.0, 0.0, 0.0),
 ];
 
-/// Controls at time `tau` in [0, 1] over the capture. `gain` scales each exercise's amplitude
-/// per subject (e.g. 0.9..1.0 so that seeds differ).
-pub fn exercise_controls(tau: f64, repeats: u32, gain: &[f64; 3]) -> JawControls {
-    let keys = EXERCISE.len() - 1;
+/// Segments of the core exercise, and of the whole one.
+pub const CORE_SEGMENTS: usize = 8;
+pub const ALL_SEGMENTS: usize = EXERCISE.len() - 1;
+/// Captures at least this long play the whole exercise (10 frames a segment); shorter ones
+/// play the core, so that no segment is faster than the movements people make.
+pub const FULL_EXERCISE_FRAMES: u32 = 170;
+
+/// Controls at time `tau` in [0, 1] over the capture, playing the first `segments` segments of
+/// the exercise `repeats` times. `gain` scales each control's amplitude per subject (e.g.
+/// 0.95..1.0 so that seeds differ).
+pub fn exercise_controls(tau: f64, segments: usize, repeats: u32, gain: &[f64; 3]) -> JawControls {
+    let keys = segments.clamp(1, ALL_SEGMENTS);
     let x =
         (tau.clamp(0.0, 1.0) * repeats.max(1) as f64).fract() + if tau >= 1.0 { 1.0 } else { 0.0 };
     let pos = (x * keys as f64).min(keys as f64);
@@ -228,11 +238,25 @@ mod tests {
     #[test]
     fn the_exercise_starts_and_ends_at_rest_and_is_smooth() {
         let g = [1.0; 3];
-        assert_eq!(exercise_controls(0.0, 1, &g), JawControls::default());
-        assert_eq!(exercise_controls(1.0, 1, &g), JawControls::default());
-        let mut prev = exercise_controls(0.0, 1, &g);
+        for segments in [CORE_SEGMENTS, ALL_SEGMENTS] {
+            assert_eq!(
+                exercise_controls(0.0, segments, 1, &g),
+                JawControls::default()
+            );
+            assert_eq!(
+                exercise_controls(1.0, segments, 1, &g),
+                JawControls::default()
+            );
+        }
+        // The core reaches the whole range: wide open, both sides, protrusion.
+        let core: Vec<JawControls> = (0..=800)
+            .map(|k| exercise_controls(k as f64 / 800.0, CORE_SEGMENTS, 1, &g))
+            .collect();
+        assert!(core.iter().any(|c| c.open > 0.99) && core.iter().any(|c| c.protrusion > 0.99));
+        assert!(core.iter().any(|c| c.lateral > 0.99) && core.iter().any(|c| c.lateral < -0.99));
+        let mut prev = exercise_controls(0.0, ALL_SEGMENTS, 1, &g);
         for k in 1..=2000 {
-            let c = exercise_controls(k as f64 / 2000.0, 1, &g);
+            let c = exercise_controls(k as f64 / 2000.0, ALL_SEGMENTS, 1, &g);
             assert!((c.open - prev.open).abs() < 0.03 && (c.lateral - prev.lateral).abs() < 0.05);
             prev = c;
         }

@@ -1,0 +1,12 @@
+//! Tracking: the pose search per arch and frame (`search`), the frame loop around it
+//! (`sequence`), tracks.json as it is written (`output`), scoring against ground truth
+//! (`score`) and overlays (`overlay`).
+
+pub mod output;
+pub mod overlay;
+pub mod score;
+pub mod search;
+pub mod sequence;
+
+pub use search::{Found, SearchSettings, search};
+pub use sequence::{FrameResult, Status, TrackSettings, TrackState, track_frames};

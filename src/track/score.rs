@@ -1,0 +1,147 @@
+//! Scoring tracked poses against ground truth: per arch and for the jaw (lower relative to
+//! upper), the mean vertex distance (mm), rotation error (deg) and translation error (mm), and
+//! the paper's area error; median, 95th percentile and maximum over frames.
+
+use crate::capture::json::FrameRecordJson;
+use crate::capture::{Arch, ArchPoses, Capture, Mesh};
+use crate::geometry::Pose;
+
+/// Median, 95th percentile (nearest rank) and maximum.
+#[derive(Debug, Clone, Copy, Default, serde::Serialize)]
+pub struct Stats {
+    pub median: f64,
+    pub p95: f64,
+    pub max: f64,
+}
+
+impl Stats {
+    pub fn of(values: &[f64]) -> Stats {
+        if values.is_empty() {
+            return Stats::default();
+        }
+        let mut v = values.to_vec();
+        v.sort_by(f64::total_cmp);
+        let rank = |q: f64| v[((q * v.len() as f64).ceil() as usize).clamp(1, v.len()) - 1];
+        Stats {
+            median: rank(0.5),
+            p95: rank(0.95),
+            max: v[v.len() - 1],
+        }
+    }
+}
+
+#[derive(Debug, Clone, serde::Serialize)]
+pub struct PoseErrors {
+    pub mean_vertex_mm: Stats,
+    pub rotation_deg: Stats,
+    pub translation_mm: Stats,
+}
+
+#[derive(Debug, Clone, serde::Serialize)]
+pub struct ScoreReport {
+    pub frames: usize,
+    pub frames_ok: usize,
+    pub frames_low_confidence: usize,
+    pub frames_no_data: usize,
+    pub upper: PoseErrors,
+    pub lower: PoseErrors,
+    pub jaw: PoseErrors,
+    /// Area error (uncovered / mask pixels) in percent, upper and lower.
+    pub area_error_percent: [Stats; 2],
+    /// Per frame: mean vertex error (mm) of upper, lower and jaw.
+    pub per_frame: Vec<(u32, [f64; 3])>,
+}
+
+/// Vertices the error is measured on: every used vertex, thinned to at most ~4000.
+fn sample_vertices(mesh: &Mesh) -> Vec<nalgebra::Vector3<f64>> {
+    let m = mesh.compacted();
+    let step = (m.positions.len() / 4000).max(1);
+    m.positions
+        .iter()
+        .step_by(step)
+        .map(|p| nalgebra::Vector3::new(p[0] as f64, p[1] as f64, p[2] as f64))
+        .collect()
+}
+
+fn mean_distance(vertices: &[nalgebra::Vector3<f64>], a: &Pose, b: &Pose) -> f64 {
+    vertices
+        .iter()
+        .map(|v| (a.transform_point(v) - b.transform_point(v)).norm())
+        .sum::<f64>()
+        / vertices.len().max(1) as f64
+}
+
+/// Score `tracked` (poses per frame, with their records for status and area error) against
+/// the capture's ground truth; frames without ground truth are skipped.
+pub fn score(capture: &Capture, tracked: &[(FrameRecordJson, ArchPoses)]) -> Option<ScoreReport> {
+    capture.gt.as_ref()?;
+    let vertices = [
+        sample_vertices(&capture.upper),
+        sample_vertices(&capture.lower),
+    ];
+    let mut errors: [[Vec<f64>; 3]; 3] = Default::default(); // [upper, lower, jaw][vertex, rot, trans]
+    let mut area: [Vec<f64>; 2] = Default::default();
+    let mut per_frame = Vec::new();
+    let (mut ok, mut low, mut none) = (0, 0, 0);
+    for (rec, poses) in tracked {
+        let Some(gt) = capture.gt_poses(rec.frame) else {
+            continue;
+        };
+        match rec.status.as_deref() {
+            Some("low-confidence") => low += 1,
+            Some("no-data") => none += 1,
+            _ => ok += 1,
+        }
+        let mut frame_err = [0.0; 3];
+        let pairs = [
+            (poses.upper, gt.upper, &vertices[0]),
+            (poses.lower, gt.lower, &vertices[1]),
+            (poses.jaw(), gt.jaw(), &vertices[1]),
+        ];
+        for (k, (t, g, verts)) in pairs.iter().enumerate() {
+            let (r, tr) = t.distance_to(g);
+            let v = mean_distance(verts, t, g);
+            errors[k][0].push(v);
+            errors[k][1].push(r.to_degrees());
+            errors[k][2].push(tr);
+            frame_err[k] = v;
+        }
+        per_frame.push((rec.frame, frame_err));
+        if let Some(a) = &rec.area_error {
+            for (k, arch) in Arch::BOTH.iter().enumerate() {
+                if let Some(x) = a.get(arch.name()).and_then(|x| x.as_f64()) {
+                    area[k].push(100.0 * x);
+                }
+            }
+        }
+    }
+    let pose_errors = |e: &[Vec<f64>; 3]| PoseErrors {
+        mean_vertex_mm: Stats::of(&e[0]),
+        rotation_deg: Stats::of(&e[1]),
+        translation_mm: Stats::of(&e[2]),
+    };
+    Some(ScoreReport {
+        frames: per_frame.len(),
+        frames_ok: ok,
+        frames_low_confidence: low,
+        frames_no_data: none,
+        upper: pose_errors(&errors[0]),
+        lower: pose_errors(&errors[1]),
+        jaw: pose_errors(&errors[2]),
+        area_error_percent: [Stats::of(&area[0]), Stats::of(&area[1])],
+        per_frame,
+    })
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn stats_use_nearest_rank() {
+        let v: Vec<f64> = (1..=100).map(f64::from).collect();
+        let s = Stats::of(&v);
+        assert_eq!((s.median, s.p95, s.max), (50.0, 95.0, 100.0));
+        assert_eq!(Stats::of(&[3.0]).p95, 3.0);
+    }
+}

@@ -1,0 +1,313 @@
+//! The pose search for one arch in one frame (Yang et al., Section 4): a finite-difference
+//! gradient of E, a golden-section search along it, rotation first with translation fixed and
+//! then translation with rotation fixed, repeated until a round gains too little; then denser
+//! local sampling around the pose (batched) to escape poor minima, and descent again from
+//! there. This is the solver only; the frame loop is in `sequence`.
+//!
+//! A candidate is the start pose moved by δ = (θx, θy, θz, tx, ty, tz): rotations R = Rz·Ry·Rx
+//! about the arch's centre, in world axes, then translations in world axes (mm).
+
+use nalgebra::Vector3;
+use rand::{RngExt, SeedableRng};
+
+use crate::capture::{Arch, ArchPoses};
+use crate::energy::{Energy, EnergyEngine};
+use crate::error::Result;
+use crate::geometry::Pose;
+
+/// The search's settings; the defaults suit three cameras at ~20 cm with half-resolution masks
+/// (a pixel is ~0.4 mm there).
+#[derive(Debug, Clone, serde::Serialize, serde::Deserialize)]
+pub struct SearchSettings {
+    /// Central-difference step for the gradient: rotation (rad) and translation (mm).
+    pub fd_step_rad: f64,
+    pub fd_step_mm: f64,
+    /// Longest step of a line search along the normalised gradient.
+    pub line_max_rad: f64,
+    pub line_max_mm: f64,
+    /// A line search stops when its bracket is shorter than this share of the longest step.
+    pub line_tolerance: f64,
+    /// At most this many descent rounds (rotation, then translation); a round that lowers E
+    /// by less than `min_gain` ends the descent.
+    pub max_rounds: usize,
+    pub min_gain: f64,
+    /// Local sampling: rounds, samples per round (one batch) and the half-widths of the box
+    /// sampled around the pose in the first round (halved each round).
+    pub sample_rounds: usize,
+    pub samples: usize,
+    pub sample_rad: f64,
+    pub sample_mm: f64,
+    /// Coarse to fine: the whole search (descent, sampling, descent) runs once per scale,
+    /// with every step, line length and sampling box multiplied by it.
+    pub scales: Vec<f64>,
+    /// Weight of the boundary term, E = uncovered + λ·boi_outside.
+    pub lambda: f64,
+}
+
+impl Default for SearchSettings {
+    fn default() -> Self {
+        SearchSettings {
+            fd_step_rad: 0.2f64.to_radians(),
+            fd_step_mm: 0.2,
+            line_max_rad: 3f64.to_radians(),
+            line_max_mm: 3.0,
+            line_tolerance: 0.01,
+            max_rounds: 12,
+            min_gain: 0.5,
+            sample_rounds: 2,
+            samples: 32,
+            sample_rad: 0.6f64.to_radians(),
+            sample_mm: 0.6,
+            scales: vec![1.0, 0.25],
+            lambda: crate::energy::DEFAULT_LAMBDA,
+        }
+    }
+}
+
+/// What a search found.
+#[derive(Debug, Clone)]
+pub struct Found {
+    pub pose: Pose,
+    pub energy: Energy,
+    pub total: f64,
+    pub evaluations: usize,
+}
+
+/// The objective of one search: E of `arch` at `start` moved by δ, the other arch fixed.
+struct Objective<'a> {
+    engine: &'a dyn EnergyEngine,
+    arch: Arch,
+    context: ArchPoses,
+    start: Pose,
+    centre: Vector3<f64>,
+    lambda: f64,
+    evaluations: usize,
+}
+
+impl Objective<'_> {
+    fn pose(&self, d: &[f64; 6]) -> Pose {
+        let r = Pose::from_euler_tuple(&[d[0], d[1], d[2], 0.0, 0.0, 0.0]).rotation;
+        let about_centre = Pose::new(r, self.centre - r * self.centre);
+        Pose::from_translation(Vector3::new(d[3], d[4], d[5]))
+            .compose(&about_centre)
+            .compose(&self.start)
+    }
+
+    fn energies(&mut self, ds: &[[f64; 6]]) -> Result<Vec<Energy>> {
+        let candidates: Vec<ArchPoses> = ds
+            .iter()
+            .map(|d| self.context.with(self.arch, self.pose(d)))
+            .collect();
+        self.evaluations += ds.len();
+        self.engine.evaluate(self.arch, &candidates)
+    }
+
+    fn totals(&mut self, ds: &[[f64; 6]]) -> Result<Vec<f64>> {
+        let lambda = self.lambda;
+        Ok(self.energies(ds)?.iter().map(|e| e.total(lambda)).collect())
+    }
+}
+
+impl SearchSettings {
+    /// The settings with every length (steps, line lengths, sampling box) times `k`.
+    fn scaled(&self, k: f64) -> SearchSettings {
+        SearchSettings {
+            fd_step_rad: self.fd_step_rad * k,
+            fd_step_mm: self.fd_step_mm * k,
+            line_max_rad: self.line_max_rad * k,
+            line_max_mm: self.line_max_mm * k,
+            sample_rad: self.sample_rad * k,
+            sample_mm: self.sample_mm * k,
+            ..self.clone()
+        }
+    }
+}
+
+const GOLDEN: f64 = 0.618_033_988_749_894_9;
+
+/// Search the pose of `arch` from `start` (the other arch held at its pose in `context`).
+/// `centre` is the arch's centre in its model frame; `seed` makes the sampling repeatable.
+pub fn search(
+    engine: &dyn EnergyEngine,
+    arch: Arch,
+    context: &ArchPoses,
+    start: Pose,
+    centre: &Vector3<f64>,
+    s: &SearchSettings,
+    seed: u64,
+) -> Result<Found> {
+    let mut obj = Objective {
+        engine,
+        arch,
+        context: *context,
+        start,
+        centre: start.transform_point(centre),
+        lambda: s.lambda,
+        evaluations: 0,
+    };
+    let mut best = [0.0; 6];
+    let mut best_e = obj.totals(&[best])?[0];
+    let mut rng = rand_chacha::ChaCha8Rng::seed_from_u64(seed);
+    for &scale in &s.scales {
+        let s = &s.scaled(scale);
+        descend(&mut obj, s, &mut best, &mut best_e)?;
+        for round in 0..s.sample_rounds {
+            // Denser local sampling around the pose, in one batch; descent again from a
+            // better sample.
+            let shrink = 0.5f64.powi(round as i32);
+            let half = [
+                s.sample_rad,
+                s.sample_rad,
+                s.sample_rad,
+                s.sample_mm,
+                s.sample_mm,
+                s.sample_mm,
+            ]
+            .map(|h| h * shrink);
+            let samples: Vec<[f64; 6]> = (0..s.samples)
+                .map(|_| std::array::from_fn(|k| best[k] + rng.random_range(-half[k]..=half[k])))
+                .collect();
+            let totals = obj.totals(&samples)?;
+            let (i, &e) = totals
+                .iter()
+                .enumerate()
+                .min_by(|a, b| a.1.total_cmp(b.1))
+                .expect("samples");
+            if e < best_e {
+                best = samples[i];
+                best_e = e;
+                descend(&mut obj, s, &mut best, &mut best_e)?;
+            }
+        }
+    }
+    let energy = obj.energies(&[best])?.remove(0);
+    Ok(Found {
+        pose: obj.pose(&best),
+        total: energy.total(s.lambda),
+        energy,
+        evaluations: obj.evaluations,
+    })
+}
+
+/// Descent rounds: for the rotation block, then the translation block, a central-difference
+/// gradient and a golden-section search along it.
+fn descend(
+    obj: &mut Objective,
+    s: &SearchSettings,
+    best: &mut [f64; 6],
+    best_e: &mut f64,
+) -> Result<()> {
+    for _ in 0..s.max_rounds {
+        let round_start = *best_e;
+        for (block, h, max_step) in [
+            (0..3, s.fd_step_rad, s.line_max_rad),
+            (3..6, s.fd_step_mm, s.line_max_mm),
+        ] {
+            // Central differences on the block's three coordinates, one batch.
+            let probes: Vec<[f64; 6]> = block
+                .clone()
+                .flat_map(|k| {
+                    [1.0, -1.0].map(|sign| {
+                        let mut d = *best;
+                        d[k] += sign * h;
+                        d
+                    })
+                })
+                .collect();
+            let e = obj.totals(&probes)?;
+            let g: Vec<f64> = (0..3)
+                .map(|i| (e[2 * i] - e[2 * i + 1]) / (2.0 * h))
+                .collect();
+            let norm = g.iter().map(|x| x * x).sum::<f64>().sqrt();
+            if norm == 0.0 {
+                // A flat gradient: take the best probe if it is better.
+                let (i, &ei) = e
+                    .iter()
+                    .enumerate()
+                    .min_by(|a, b| a.1.total_cmp(b.1))
+                    .expect("probes");
+                if ei < *best_e {
+                    *best = probes[i];
+                    *best_e = ei;
+                }
+                continue;
+            }
+            let mut dir = [0.0; 6];
+            for (i, k) in block.clone().enumerate() {
+                dir[k] = -g[i] / norm;
+            }
+            let (t, e_t) = line_search(
+                obj,
+                best,
+                &dir,
+                *best_e,
+                max_step,
+                s.line_tolerance * max_step,
+            )?;
+            if e_t < *best_e {
+                for k in 0..6 {
+                    best[k] += t * dir[k];
+                }
+                *best_e = e_t;
+            }
+        }
+        if round_start - *best_e < s.min_gain {
+            break;
+        }
+    }
+    Ok(())
+}
+
+/// Minimise φ(t) = E(δ + t·dir) over t in [0, max_step]: bracket with one batch at
+/// t = max_step·2^-k, then golden-section search inside the bracket.
+fn line_search(
+    obj: &mut Objective,
+    at: &[f64; 6],
+    dir: &[f64; 6],
+    e0: f64,
+    max_step: f64,
+    tol: f64,
+) -> Result<(f64, f64)> {
+    let point = |t: f64| -> [f64; 6] { std::array::from_fn(|k| at[k] + t * dir[k]) };
+    let ts: Vec<f64> = (0..5).rev().map(|k| max_step * 0.5f64.powi(k)).collect(); // 1/16 .. 1
+    let es = obj.totals(&ts.iter().map(|&t| point(t)).collect::<Vec<_>>())?;
+    let mut all_t = vec![0.0];
+    all_t.extend(&ts);
+    let mut all_e = vec![e0];
+    all_e.extend(&es);
+    // The best point and its neighbours bracket the minimum (at t = 0: the bracket [0, t1]).
+    let k = (0..all_e.len())
+        .min_by(|&a, &b| all_e[a].total_cmp(&all_e[b]))
+        .expect("points");
+    let (mut a, mut b) = (
+        all_t[k.saturating_sub(1)],
+        all_t[(k + 1).min(all_t.len() - 1)],
+    );
+    let (mut best_t, mut best_e) = (all_t[k], all_e[k]);
+    let mut c = b - GOLDEN * (b - a);
+    let mut d = a + GOLDEN * (b - a);
+    let mut fc = obj.totals(&[point(c)])?[0];
+    let mut fd = obj.totals(&[point(d)])?[0];
+    while b - a > tol {
+        if fc <= fd {
+            b = d;
+            d = c;
+            fd = fc;
+            c = b - GOLDEN * (b - a);
+            fc = obj.totals(&[point(c)])?[0];
+        } else {
+            a = c;
+            c = d;
+            fc = fd;
+            d = a + GOLDEN * (b - a);
+            fd = obj.totals(&[point(d)])?[0];
+        }
+        for (t, e) in [(c, fc), (d, fd)] {
+            if e < best_e {
+                best_t = t;
+                best_e = e;
+            }
+        }
+    }
+    Ok((best_t, best_e))
+}
