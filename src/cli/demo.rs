@@ -60,9 +60,7 @@ pub fn run(a: Args) -> anyhow::Result<()> {
     let mut engine = opened.engine;
     engine.set_frame(&capture.load_masks(frame)?)?;
     println!("at the true poses:");
-    println!(
-        "arch   camera  mask_px  uncovered  boi_outside  total      off/none off/body off/boi on/none on/body on/boi"
-    );
+    println!("{}", super::energy::TABLE_HEADER);
     for arch in Arch::BOTH {
         let e = engine.evaluate(arch, &[truth])?.remove(0);
         super::energy::print_energy(arch, &capture.camera_names(), &e, DEFAULT_LAMBDA);

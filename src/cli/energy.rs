@@ -85,9 +85,7 @@ pub fn run(a: Args) -> anyhow::Result<()> {
     let mut engine = opened.engine;
     engine.set_frame(&capture.load_masks(a.frame)?)?;
     println!("frame {}  lambda {}", a.frame, a.lambda);
-    println!(
-        "arch   camera  mask_px  uncovered  boi_outside  total      off/none off/body off/boi on/none on/body on/boi"
-    );
+    println!("{}", TABLE_HEADER);
     for arch in Arch::BOTH {
         let started = Instant::now();
         let e = engine.evaluate(arch, &[poses])?.remove(0);
@@ -110,32 +108,39 @@ pub fn default_poses(capture: &Capture, frame: u32) -> Option<ArchPoses> {
     })
 }
 
+/// The header of `print_energy`'s table: the paper's terms, the cross-label count (pixels of
+/// the other arch covered by this one), and the paper's six bins (mask off/on x class).
+pub const TABLE_HEADER: &str = "arch   camera  mask_px  uncovered  boi_outside  total      cross  off/none off/body off/boi on/none on/body on/boi";
+
 pub fn print_energy(arch: Arch, cameras: &[&str], e: &Energy, lambda: f64) {
     for (name, c) in cameras.iter().zip(&e.cameras) {
+        let b = c.paper_bins();
         println!(
-            "{:<6} {:<7} {:>7}  {:>9}  {:>11}  {:>9.1}  {:>8} {:>8} {:>7} {:>7} {:>7} {:>6}",
+            "{:<6} {:<7} {:>7}  {:>9}  {:>11}  {:>9.1}  {:>5}  {:>8} {:>8} {:>7} {:>7} {:>7} {:>6}",
             arch.name(),
             name,
             c.mask_pixels(),
             c.uncovered(),
             c.boi_outside(),
             c.total(lambda),
-            c.bins[0],
-            c.bins[1],
-            c.bins[2],
-            c.bins[3],
-            c.bins[4],
-            c.bins[5]
+            c.cross(),
+            b[0],
+            b[1],
+            b[2],
+            b[3],
+            b[4],
+            b[5]
         );
     }
     println!(
-        "{:<6} {:<7} {:>7}  {:>9}  {:>11}  {:>9.1}  area error {:.3}%",
+        "{:<6} {:<7} {:>7}  {:>9}  {:>11}  {:>9.1}  {:>5}  area error {:.3}%",
         arch.name(),
         "all",
         e.mask_pixels(),
         e.uncovered(),
         e.boi_outside(),
         e.total(lambda),
+        e.cross(),
         100.0 * e.area_error()
     );
 }

@@ -8,7 +8,10 @@ use std::cell::RefCell;
 use rayon::prelude::*;
 
 use super::raster::{self, CLASS_BODY, CLASS_BOI, Placed, Target};
-use super::{Counts, Energy, EnergyEngine, Region, Scene, counts_with_outside};
+use super::{
+    Counts, Energy, EnergyEngine, MASK_NONE, MASK_OTHER, MASK_OWN, Region, Scene,
+    counts_with_outside, mask_totals,
+};
 use crate::capture::{Arch, ArchPoses, FrameMasks, LabelMask};
 use crate::error::Result;
 use crate::geometry::Camera;
@@ -16,7 +19,8 @@ use crate::geometry::Camera;
 /// A frame's mask for one camera with its per-arch pixel totals.
 struct PreparedMask {
     mask: LabelMask,
-    totals: [u64; 2],
+    /// Per scored arch (upper, lower): see `mask_totals`.
+    totals: [[u64; 2]; 2],
 }
 
 pub struct CpuEnergy {
@@ -62,7 +66,13 @@ impl CpuEnergy {
         SCRATCH.with(|s| {
             let s = &mut *s.borrow_mut();
             render(&self.scene, self.region, cam, arch, poses, s);
-            count(cam, &s.target, &prep.mask, arch, prep.totals)
+            count(
+                cam,
+                &s.target,
+                &prep.mask,
+                arch,
+                prep.totals[(arch == Arch::Lower) as usize],
+            )
         })
     }
 }
@@ -103,10 +113,21 @@ fn render(
     raster::rasterise(cam, mesh, &s.scored, CLASS_BODY, CLASS_BOI, &mut s.target);
 }
 
-/// The six bins over the whole mask: counted inside the target, derived outside it.
+/// The nine bins over the whole mask: counted inside the target, derived outside it.
 fn count(cam: &Camera, target: &Target, mask: &LabelMask, arch: Arch, totals: [u64; 2]) -> Counts {
-    let bit = arch.mask_bit();
-    let mut bins = [0u64; 6];
+    let (own, other) = (arch.mask_bit(), arch.other().mask_bit());
+    // Mask state per label value: own, else other, else none.
+    let state: [usize; 4] = std::array::from_fn(|m| {
+        let m = m as u8;
+        if m & own != 0 {
+            MASK_OWN
+        } else if m & other != 0 {
+            MASK_OTHER
+        } else {
+            MASK_NONE
+        }
+    });
+    let mut bins = [0u64; 9];
     if let Some(r) = target.rect {
         let w = r.width as usize;
         for y in 0..r.height as usize {
@@ -114,11 +135,11 @@ fn count(cam: &Camera, target: &Target, mask: &LabelMask, arch: Arch, totals: [u
             let mrow = &mask.data[start..start + w];
             let crow = &target.class[y * w..(y + 1) * w];
             for (&m, &c) in mrow.iter().zip(crow) {
-                bins[((m & bit != 0) as usize) * 3 + c as usize] += 1;
+                bins[state[(m & 3) as usize] * 3 + c as usize] += 1;
             }
         }
     }
-    counts_with_outside(bins, cam, totals, arch)
+    counts_with_outside(bins, cam, totals)
 }
 
 impl EnergyEngine for CpuEnergy {
@@ -137,8 +158,8 @@ impl EnergyEngine for CpuEnergy {
             .map(|m| {
                 m.as_ref().map(|mask| PreparedMask {
                     totals: [
-                        mask.count(Arch::Upper.mask_bit()),
-                        mask.count(Arch::Lower.mask_bit()),
+                        mask_totals(mask, Arch::Upper),
+                        mask_totals(mask, Arch::Lower),
                     ],
                     mask: mask.clone(),
                 })
@@ -163,6 +184,7 @@ impl EnergyEngine for CpuEnergy {
 
 #[cfg(test)]
 mod tests {
+    use super::super::{MASK_NONE, MASK_OTHER, MASK_OWN};
     use super::*;
     use crate::capture::{MaskMode, Mesh};
     use crate::geometry::Pose;
@@ -251,12 +273,13 @@ mod tests {
         let c = en.cameras[0];
         // mask 25 x 10 = 250; covered by the model: columns 45..60 x rows 35..45 = 150,
         // of which BOI rows 35..40: 75, body rows 40..45: 75. Uncovered 100.
-        assert_eq!(c.bin(true, 1), 75);
-        assert_eq!(c.bin(true, 2), 75);
+        assert_eq!(c.bin(MASK_OWN, 1), 75);
+        assert_eq!(c.bin(MASK_OWN, 2), 75);
         assert_eq!(c.uncovered(), 100);
         // BOI off the mask: 20 x 10 BOI pixels − 75 on the mask = 125.
         assert_eq!(c.boi_outside(), 125);
-        assert_eq!(c.bin(false, 1), 200 - 75);
+        assert_eq!(c.bin(MASK_NONE, 1), 200 - 75);
+        assert_eq!(c.cross(), 0);
         assert_eq!(c.bins.iter().sum::<u64>(), 8000);
         assert_eq!(en.total(0.4), 100.0 + 0.4 * 125.0);
         assert!((en.area_error() - 0.4).abs() < 1e-12);
@@ -298,6 +321,40 @@ mod tests {
             alone.evaluate(Arch::Upper, &[poses]).unwrap()[0].uncovered(),
             200
         );
+    }
+
+    #[test]
+    fn covering_the_other_arch_s_pixels_counts_as_cross() {
+        // Per-arch mask: the upper arch's label on columns 40..60 (the square's place), the
+        // lower's on columns 60..80. The upper square moved 5 px right covers 5 columns of
+        // lower-labelled pixels in front: 5 x 20 = 100 cross pixels, 50 of them BOI.
+        let mut e = engine((40, 30, 60, 50), PER_ARCH);
+        let mut frame_mask = match &e.frame[0] {
+            Some(p) => p.mask.clone(),
+            None => unreachable!(),
+        };
+        for y in 30..50 {
+            for x in 60..80 {
+                frame_mask.data[y * 100 + x] = crate::capture::LOWER_BIT;
+            }
+        }
+        e.set_frame(&FrameMasks {
+            frame: 0,
+            masks: vec![Some(frame_mask)],
+        })
+        .unwrap();
+        let c = e.evaluate(Arch::Upper, &[at_depth(5.0)]).unwrap()[0].cameras[0];
+        assert_eq!(c.cross(), 100);
+        assert_eq!(c.bin(MASK_OTHER, 2), 50);
+        assert_eq!(
+            c.boi_outside(),
+            50,
+            "BOI over the other arch is outside this arch's mask"
+        );
+        assert_eq!(c.uncovered(), 100);
+        assert_eq!(c.paper_bins().iter().sum::<u64>(), 8000);
+        let en = Energy { cameras: vec![c] };
+        assert_eq!(en.objective(0.4, 1.0), 100.0 + 0.4 * 50.0 + 100.0);
     }
 
     #[test]

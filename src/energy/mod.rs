@@ -1,6 +1,6 @@
 //! The paper's energy E = E_SP + λ·E_BND (Eq. 7-9), per arch and candidate pose, summed over
 //! cameras. Every backend implements [`EnergyEngine`]: a batch of candidate poses in, one
-//! [`Energy`] (six counts per camera) out for each.
+//! [`Energy`] (nine counts per camera: mask none/own/other x class) out for each.
 
 pub mod backend;
 pub mod cpu;
@@ -29,39 +29,72 @@ pub enum Region {
     FullFrame,
 }
 
-/// The six bins of a camera from the bins counted inside a rendered region, adding the
-/// pixels outside it (all class none) from the mask's per-arch totals (upper, lower).
-pub fn counts_with_outside(inside: [u64; 6], cam: &Camera, totals: [u64; 2], arch: Arch) -> Counts {
-    let mask_total = totals[(arch == Arch::Lower) as usize];
-    let inside_on: u64 = inside[3..].iter().sum();
-    let inside_off: u64 = inside[..3].iter().sum();
+/// Mask states of a pixel for the scored arch.
+pub const MASK_NONE: usize = 0;
+/// The pixel shows the scored arch (with combined masks: any teeth).
+pub const MASK_OWN: usize = 1;
+/// The pixel shows the other arch (per-arch masks only).
+pub const MASK_OTHER: usize = 2;
+
+/// Per camera and scored arch, the mask's pixel totals: the arch's own pixels and the other
+/// arch's (the rest show neither).
+pub fn mask_totals(mask: &crate::capture::LabelMask, arch: Arch) -> [u64; 2] {
+    let (own, other) = (arch.mask_bit(), arch.other().mask_bit());
+    let mut t = [0u64; 2];
+    for &m in &mask.data {
+        if m & own != 0 {
+            t[0] += 1;
+        } else if m & other != 0 {
+            t[1] += 1;
+        }
+    }
+    t
+}
+
+/// The nine bins of a camera from the bins counted inside a rendered region, adding the
+/// pixels outside it (all class none) from the mask's totals (own, other).
+pub fn counts_with_outside(inside: [u64; 9], cam: &Camera, totals: [u64; 2]) -> Counts {
+    let row = |m: usize| inside[m * 3..m * 3 + 3].iter().sum::<u64>();
     let all = cam.width as u64 * cam.height as u64;
     let mut bins = inside;
-    bins[3] += mask_total - inside_on;
-    bins[0] += (all - mask_total) - inside_off;
+    bins[MASK_OWN * 3] += totals[0] - row(MASK_OWN);
+    bins[MASK_OTHER * 3] += totals[1] - row(MASK_OTHER);
+    bins[MASK_NONE * 3] += (all - totals[0] - totals[1]) - row(MASK_NONE);
     Counts { bins }
 }
 
-/// One camera's six counts: mask (off, on) x class (none, body, BOI), at `mask * 3 + class`.
+/// One camera's counts: mask state (none, own, other: `MASK_*`) x class (none, body, BOI), at
+/// `mask * 3 + class`. The paper's six bins fold "other" into "none" ([`Counts::paper_bins`]).
 #[derive(Debug, Clone, Copy, Default, PartialEq, Eq)]
 pub struct Counts {
-    pub bins: [u64; 6],
+    pub bins: [u64; 9],
 }
 
 impl Counts {
-    pub fn bin(&self, on_mask: bool, class: u8) -> u64 {
-        self.bins[on_mask as usize * 3 + class as usize]
+    pub fn bin(&self, mask: usize, class: u8) -> u64 {
+        self.bins[mask * 3 + class as usize]
     }
-    /// The paper's #Pixel_White: mask pixels the model leaves uncovered.
+    /// The paper's #Pixel_White: the arch's mask pixels the model leaves uncovered.
     pub fn uncovered(&self) -> u64 {
-        self.bins[3]
+        self.bins[MASK_OWN * 3]
     }
-    /// The paper's #Pixel_DGreen: visible BOI pixels outside the mask.
+    /// The paper's #Pixel_DGreen: visible BOI pixels outside the arch's mask.
     pub fn boi_outside(&self) -> u64 {
-        self.bins[2]
+        self.bins[MASK_NONE * 3 + 2] + self.bins[MASK_OTHER * 3 + 2]
+    }
+    /// Pixels the segmentation gives to the other arch where this arch's model is visible in
+    /// front of it: a contradiction that a single teeth mask (the paper's) cannot show. Zero
+    /// with combined masks.
+    pub fn cross(&self) -> u64 {
+        self.bins[MASK_OTHER * 3 + 1] + self.bins[MASK_OTHER * 3 + 2]
     }
     pub fn mask_pixels(&self) -> u64 {
-        self.bins[3] + self.bins[4] + self.bins[5]
+        self.bins[MASK_OWN * 3..MASK_OWN * 3 + 3].iter().sum()
+    }
+    /// The paper's six bins, mask (off, on) x class: the other arch's pixels count as off.
+    pub fn paper_bins(&self) -> [u64; 6] {
+        let b = &self.bins;
+        [b[0] + b[6], b[1] + b[7], b[2] + b[8], b[3], b[4], b[5]]
     }
     pub fn total(&self, lambda: f64) -> f64 {
         self.uncovered() as f64 + lambda * self.boi_outside() as f64
@@ -84,9 +117,16 @@ impl Energy {
     pub fn mask_pixels(&self) -> u64 {
         self.cameras.iter().map(Counts::mask_pixels).sum()
     }
-    /// E = uncovered + λ·boi_outside.
+    pub fn cross(&self) -> u64 {
+        self.cameras.iter().map(Counts::cross).sum()
+    }
+    /// The paper's E = uncovered + λ·boi_outside.
     pub fn total(&self, lambda: f64) -> f64 {
         self.uncovered() as f64 + lambda * self.boi_outside() as f64
+    }
+    /// What the search minimises: the paper's E plus `cross_weight`·cross (per-arch masks).
+    pub fn objective(&self, lambda: f64, cross_weight: f64) -> f64 {
+        self.total(lambda) + cross_weight * self.cross() as f64
     }
     /// The paper's accuracy proxy: uncovered / mask pixels (0 without mask pixels).
     pub fn area_error(&self) -> f64 {

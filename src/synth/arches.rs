@@ -33,8 +33,8 @@ const fn tooth(width: f64, depth: f64, height: f64, taper_depth: f64, taper_widt
 
 /// Central incisor to second molar; typical adult crown sizes.
 const UPPER_TEETH: [Tooth; 7] = [
-    tooth(8.5, 7.0, 10.5, 0.85, 0.1),
-    tooth(6.5, 6.0, 9.0, 0.85, 0.15),
+    tooth(8.5, 7.0, 10.5, 0.85, 0.05),
+    tooth(6.5, 6.0, 9.0, 0.85, 0.05),
     tooth(7.5, 8.0, 10.0, 0.6, 0.75),
     tooth(7.0, 9.0, 8.0, 0.35, 0.3),
     tooth(6.5, 9.0, 7.5, 0.35, 0.3),
@@ -42,8 +42,8 @@ const UPPER_TEETH: [Tooth; 7] = [
     tooth(9.0, 11.0, 6.5, 0.25, 0.2),
 ];
 const LOWER_TEETH: [Tooth; 7] = [
-    tooth(5.0, 6.0, 9.0, 0.85, 0.1),
-    tooth(5.5, 6.5, 9.5, 0.85, 0.15),
+    tooth(5.0, 6.0, 9.0, 0.85, 0.05),
+    tooth(5.5, 6.5, 9.5, 0.85, 0.05),
     tooth(7.0, 7.5, 11.0, 0.6, 0.75),
     tooth(7.0, 7.5, 8.0, 0.35, 0.3),
     tooth(7.0, 8.0, 8.0, 0.35, 0.3),
@@ -134,7 +134,7 @@ fn add_crown(mesh: &mut Mesh, t: &Tooth, x: f64, z: f64, heading: f64, upper: bo
         // Bulge at the height of contour, then narrowing towards the tip.
         let bulge = 1.0 + 0.12 * (std::f64::consts::PI * h).sin();
         let tip_shape = h.powf(2.5);
-        let half_w = 0.5 * t.width * bulge * (1.0 - t.taper_width * tip_shape) * 0.92;
+        let half_w = 0.5 * t.width * bulge * (1.0 - t.taper_width * tip_shape) * 0.98;
         let half_d = 0.5 * t.depth * bulge * (1.0 - t.taper_depth * tip_shape) * 0.85;
         // The cervical line sits `height` from the tip; the tip level is y = 0.
         let y = -tip_dir * t.height * (1.0 - h);

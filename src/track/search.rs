@@ -42,6 +42,11 @@ pub struct SearchSettings {
     pub scales: Vec<f64>,
     /// Weight of the boundary term, E = uncovered + λ·boi_outside.
     pub lambda: f64,
+    /// Weight of the cross-label term added to E with per-arch masks: pixels labelled as the
+    /// other arch where this arch's model is visible in front of it. Without it an arch can
+    /// move in front of the other to cover its own mask's noisy edge at no cost. 0 gives the
+    /// paper's E exactly; combined masks have no such pixels.
+    pub cross_weight: f64,
 }
 
 impl Default for SearchSettings {
@@ -60,6 +65,7 @@ impl Default for SearchSettings {
             sample_mm: 0.6,
             scales: vec![1.0, 0.25],
             lambda: crate::energy::DEFAULT_LAMBDA,
+            cross_weight: 1.0,
         }
     }
 }
@@ -69,6 +75,7 @@ impl Default for SearchSettings {
 pub struct Found {
     pub pose: Pose,
     pub energy: Energy,
+    /// The objective at `pose` (E plus the cross-label term).
     pub total: f64,
     pub evaluations: usize,
 }
@@ -81,6 +88,7 @@ struct Objective<'a> {
     start: Pose,
     centre: Vector3<f64>,
     lambda: f64,
+    cross_weight: f64,
     evaluations: usize,
 }
 
@@ -103,8 +111,12 @@ impl Objective<'_> {
     }
 
     fn totals(&mut self, ds: &[[f64; 6]]) -> Result<Vec<f64>> {
-        let lambda = self.lambda;
-        Ok(self.energies(ds)?.iter().map(|e| e.total(lambda)).collect())
+        let (lambda, cross) = (self.lambda, self.cross_weight);
+        Ok(self
+            .energies(ds)?
+            .iter()
+            .map(|e| e.objective(lambda, cross))
+            .collect())
     }
 }
 
@@ -143,6 +155,7 @@ pub fn search(
         start,
         centre: start.transform_point(centre),
         lambda: s.lambda,
+        cross_weight: s.cross_weight,
         evaluations: 0,
     };
     let mut best = [0.0; 6];
@@ -183,7 +196,7 @@ pub fn search(
     let energy = obj.energies(&[best])?.remove(0);
     Ok(Found {
         pose: obj.pose(&best),
-        total: energy.total(s.lambda),
+        total: energy.objective(s.lambda, s.cross_weight),
         energy,
         evaluations: obj.evaluations,
     })

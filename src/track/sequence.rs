@@ -171,7 +171,7 @@ fn track_frame(
         });
     }
     engine.set_frame(masks)?;
-    let lambda = settings.search.lambda;
+    let objective = |e: &Energy| e.objective(settings.search.lambda, settings.search.cross_weight);
     let mut evaluations = 0;
     // Start, per arch, from whichever fits this frame best: the last good pose, its
     // constant-velocity extrapolation, or the latest low-confidence estimate since.
@@ -193,7 +193,7 @@ fn track_frame(
             let e = engine.evaluate(arch, &options)?;
             evaluations += options.len();
             let best = (0..e.len())
-                .min_by(|&i, &j| e[i].total(lambda).total_cmp(&e[j].total(lambda)))
+                .min_by(|&i, &j| objective(&e[i]).total_cmp(&objective(&e[j])))
                 .expect("starts");
             poses = options[best];
         }

@@ -19,7 +19,7 @@ use wgpu::util::DeviceExt;
 pub use adapter::{ADAPTER_ENV, GpuContext};
 
 use super::raster::{self, CLASS_BODY, CLASS_BOI, NEAR_MM, Rect};
-use super::{Counts, Energy, EnergyEngine, Region, Scene, counts_with_outside};
+use super::{Counts, Energy, EnergyEngine, Region, Scene, counts_with_outside, mask_totals};
 use crate::capture::{Arch, ArchPoses, FrameMasks, Mesh};
 use crate::error::Result;
 use crate::geometry::{Camera, Pose};
@@ -94,8 +94,9 @@ struct TileRecord {
     mask_y: u32,
     layer: u32,
     arch_bit: u32,
+    other_bit: u32,
     slot: u32,
-    _pad: [u32; 3],
+    _pad: [u32; 2],
 }
 
 /// An arch on the GPU: body triangles first, then BOI triangles, in one index buffer.
@@ -194,8 +195,9 @@ pub struct GpuEnergy {
     depth_view: wgpu::TextureView,
     masks: wgpu::Texture,
     masks_view: wgpu::TextureView,
-    /// Per camera: the frame's mask totals (upper, lower), or `None` without a mask.
-    frame: Vec<Option<[u64; 2]>>,
+    /// Per camera: the frame's mask totals per scored arch (upper, lower; see
+    /// `mask_totals`), or `None` without a mask.
+    frame: Vec<Option<[[u64; 2]; 2]>>,
     batch: Mutex<Option<Batch>>,
 }
 
@@ -509,6 +511,16 @@ impl GpuEnergy {
         &self.ctx
     }
 
+    /// A camera's mask totals for the scored arch; the readback baseline, like the paper,
+    /// sees only the arch's own mask, and counts the other arch's pixels as none.
+    fn totals(&self, frame: &[[u64; 2]; 2], arch: Arch) -> [u64; 2] {
+        let t = frame[(arch == Arch::Lower) as usize];
+        match self.counting {
+            Counting::Histogram => t,
+            Counting::Readback => [t[0], 0],
+        }
+    }
+
     fn mesh(&self, arch: Arch) -> &GpuMesh {
         &self.meshes[(arch == Arch::Lower) as usize]
     }
@@ -547,7 +559,7 @@ impl GpuEnergy {
             })
         };
         use wgpu::BufferUsages as U;
-        let counts_size = (capacity.1 * 6 * 4) as u64;
+        let counts_size = (capacity.1 * 9 * 4) as u64;
         let draws = buffer(
             "draws",
             (capacity.0 * size_of::<DrawRecord>()) as u64,
@@ -713,7 +725,7 @@ impl GpuEnergy {
         for e in &mut energies {
             for (k, totals) in self.frame.iter().enumerate() {
                 if let (Some(t), Some(cam)) = (totals, &self.scene.cameras[k]) {
-                    e.cameras[k] = counts_with_outside([0; 6], cam, *t, arch);
+                    e.cameras[k] = counts_with_outside([0; 9], cam, self.totals(t, arch));
                 }
             }
         }
@@ -723,7 +735,7 @@ impl GpuEnergy {
                 .expect("tiles only for cameras");
             let totals = self.frame[tile.camera].expect("tiles only for cameras with masks");
             energies[tile.candidate].cameras[tile.camera] =
-                counts_with_outside(bins, cam, totals, arch);
+                counts_with_outside(bins, cam, self.totals(&totals, arch));
         }
         Ok(energies)
     }
@@ -734,7 +746,7 @@ impl GpuEnergy {
         arch: Arch,
         candidates: &[ArchPoses],
         tiles: &[Tile],
-    ) -> Result<Vec<[u64; 6]>, GpuError> {
+    ) -> Result<Vec<[u64; 9]>, GpuError> {
         let sizes: Vec<(u32, u32)> = tiles
             .iter()
             .map(|t| (t.rect.width, t.rect.height))
@@ -896,7 +908,7 @@ impl GpuEnergy {
         tiles: &[Tile],
         placement: &[atlas::Placement],
         draws: &[DrawRecord],
-    ) -> Result<Vec<[u64; 6]>, GpuError> {
+    ) -> Result<Vec<[u64; 9]>, GpuError> {
         let n_pages = placement.last().map_or(0, |p| p.page + 1);
         let records: Vec<TileRecord> = tiles
             .iter()
@@ -911,8 +923,9 @@ impl GpuEnergy {
                 mask_y: tile.rect.y0,
                 layer: tile.camera as u32,
                 arch_bit: arch.mask_bit() as u32,
+                other_bit: arch.other().mask_bit() as u32,
                 slot: slot as u32,
-                _pad: [0; 3],
+                _pad: [0; 2],
             })
             .collect();
         // Page p's tiles are contiguous (packing is in order): its first tile index.
@@ -927,7 +940,7 @@ impl GpuEnergy {
         queue.write_buffer(&batch.draws, 0, bytemuck::cast_slice(draws));
         queue.write_buffer(&batch.tiles, 0, bytemuck::cast_slice(&records));
         queue.write_buffer(&batch.pages, 0, &page_params);
-        let counts_size = (tiles.len() * 6 * 4) as u64;
+        let counts_size = (tiles.len() * 9 * 4) as u64;
         let mut encoder = device.create_command_encoder(&wgpu::CommandEncoderDescriptor {
             label: Some("energy"),
         });
@@ -977,7 +990,7 @@ impl GpuEnergy {
         queue.submit([encoder.finish()]);
         let bytes = self.read_back(&batch.staging, counts_size)?;
         Ok(bytemuck::cast_slice::<u8, u32>(&bytes)
-            .chunks_exact(6)
+            .chunks_exact(9)
             .map(|c| std::array::from_fn(|k| c[k] as u64))
             .collect())
     }
@@ -989,7 +1002,7 @@ impl GpuEnergy {
         tiles: &[Tile],
         placement: &[atlas::Placement],
         draws: &[DrawRecord],
-    ) -> Result<Vec<[u64; 6]>, GpuError> {
+    ) -> Result<Vec<[u64; 9]>, GpuError> {
         let target = self
             .readback
             .as_ref()
@@ -1000,7 +1013,7 @@ impl GpuEnergy {
         let batch = self.batch_with_room(&mut guard, draws.len(), tiles.len(), n_pages);
         let (device, queue) = (&self.ctx.device, &self.ctx.queue);
         queue.write_buffer(&batch.draws, 0, bytemuck::cast_slice(draws));
-        let mut out = vec![[0u64; 6]; tiles.len()];
+        let mut out = vec![[0u64; 9]; tiles.len()];
         for page in 0..n_pages {
             let on_page: Vec<usize> = (0..tiles.len())
                 .filter(|&i| placement[i].page == page)
@@ -1102,9 +1115,10 @@ fn tiles_arch(draws: &[DrawRecord], first: u32) -> Arch {
     }
 }
 
-/// The paper's colour counting: white = mask uncovered, pink = mask under the body, light
-/// green = mask under the BOI, dark red = body off the mask, dark green = BOI off the mask
-/// (the paper's #Pixel_DGreen), black = neither. Alpha 0.5 puts the halves at 127/128.
+/// The paper's colour counting, into the first six of the nine bins (the baseline cannot tell
+/// the other arch's pixels from background): white = mask uncovered, pink = mask under the
+/// body, light green = mask under the BOI, dark red = body off the mask, dark green = BOI off
+/// the mask (the paper's #Pixel_DGreen), black = neither. Alpha 0.5 puts the halves at 127/128.
 fn colour_bin(rgba: &[u8]) -> usize {
     let (r, g, b) = (rgba[0], rgba[1], rgba[2]);
     match (r >= 192, g >= 192, b >= 192) {
@@ -1124,12 +1138,9 @@ impl EnergyEngine for GpuEnergy {
 
     fn set_frame(&mut self, masks: &FrameMasks) -> Result<()> {
         for (layer, m) in masks.masks.iter().enumerate() {
-            self.frame[layer] = m.as_ref().map(|m| {
-                [
-                    m.count(Arch::Upper.mask_bit()),
-                    m.count(Arch::Lower.mask_bit()),
-                ]
-            });
+            self.frame[layer] = m
+                .as_ref()
+                .map(|m| [mask_totals(m, Arch::Upper), mask_totals(m, Arch::Lower)]);
             let Some(m) = m else { continue };
             self.ctx.queue.write_texture(
                 wgpu::TexelCopyTextureInfo {
