@@ -15,6 +15,9 @@ pub enum Command {
     /// Time the energy: CPU reference, GPU histogram and the readback baseline, single and
     /// batched, footprint and full frame, on a procedural arch and the real scans.
     Energy(EnergyArgs),
+    /// Track synthetic captures and compare with the energy's floor (the minimum of E found
+    /// by a long, fine search from the truth), per preset: accuracy, speed, ratio to floor.
+    Track(TrackArgs),
 }
 
 #[derive(clap::Args)]
@@ -60,6 +63,7 @@ struct Report {
 pub fn run(c: Command) -> anyhow::Result<()> {
     match c {
         Command::Energy(a) => energy(a),
+        Command::Track(a) => track(a),
     }
 }
 
@@ -207,6 +211,231 @@ fn energy(a: EnergyArgs) -> anyhow::Result<()> {
                 r.batch,
                 r.ms_per_evaluation,
                 r.evaluations_per_second
+            );
+        }
+    }
+    Ok(())
+}
+
+#[derive(clap::Args)]
+pub struct TrackArgs {
+    /// Print JSON instead of a table.
+    #[arg(long)]
+    json: bool,
+    /// Presets to measure.
+    #[arg(long, value_delimiter = ',', default_value = "realistic")]
+    presets: Vec<Preset>,
+    /// Seeds (one capture each).
+    #[arg(long, value_delimiter = ',', default_value = "1,2,3")]
+    seeds: Vec<u64>,
+    /// Frames per capture.
+    #[arg(long, default_value_t = 34)]
+    frames: u32,
+    /// Mask kind.
+    #[arg(long, value_enum, default_value_t = jawtrack::synth::MaskKind::PerArch)]
+    masks: jawtrack::synth::MaskKind,
+    #[command(flatten)]
+    engine: super::energy::EngineArgs,
+}
+
+#[derive(serde::Serialize)]
+struct TrackRow {
+    preset: String,
+    masks: String,
+    frames: usize,
+    seconds_per_frame: f64,
+    evaluations_per_frame: f64,
+    /// Jaw and per-arch mean vertex error (mm): median, 95th percentile.
+    jaw_error_mm: [f64; 2],
+    upper_error_mm: [f64; 2],
+    lower_error_mm: [f64; 2],
+    /// The energy's floor: the error of E's minimum found by a long, fine search from the
+    /// truth (jaw, median and 95th percentile).
+    jaw_floor_mm: [f64; 2],
+    /// Median over frames of tracked error / floor (jaw mean vertex error; floors under
+    /// 0.01 mm count as 0.01 mm).
+    median_ratio_to_floor: f64,
+    area_error_percent_median: [f64; 2],
+}
+
+/// The floor: E minimised by a long, fine search from the true poses (upper, then lower).
+fn floor_poses(
+    capture: &Capture,
+    engine: &dyn EnergyEngine,
+    truth: &ArchPoses,
+    frame: u32,
+) -> anyhow::Result<ArchPoses> {
+    use jawtrack::track::SearchSettings;
+    let fine = SearchSettings {
+        max_rounds: 40,
+        min_gain: 0.1,
+        sample_rounds: 4,
+        samples: 64,
+        scales: vec![1.0, 0.25, 0.06],
+        ..SearchSettings::default()
+    };
+    let mut poses = *truth;
+    for arch in Arch::BOTH {
+        let (lo, hi) = capture.mesh(arch).bounds();
+        let centre = nalgebra::Vector3::new(
+            (lo[0] + hi[0]) as f64,
+            (lo[1] + hi[1]) as f64,
+            (lo[2] + hi[2]) as f64,
+        ) * 0.5;
+        let found = jawtrack::track::search(
+            engine,
+            arch,
+            &poses,
+            *poses.get(arch),
+            &centre,
+            &fine,
+            frame as u64,
+        )?;
+        poses = poses.with(arch, found.pose);
+    }
+    Ok(poses)
+}
+
+pub fn track(a: TrackArgs) -> anyhow::Result<()> {
+    use jawtrack::track::score::Stats;
+    let tmp = tempfile::tempdir()?;
+    let mut rows = Vec::new();
+    for preset in &a.presets {
+        let mut jaw = Vec::new();
+        let mut upper = Vec::new();
+        let mut lower = Vec::new();
+        let mut floor = Vec::new();
+        let mut ratio = Vec::new();
+        let mut area = [Vec::new(), Vec::new()];
+        let (mut seconds, mut evaluations, mut frames) = (0.0, 0usize, 0usize);
+        for &seed in &a.seeds {
+            let dir = tmp.path().join(format!("{preset:?}-{seed}"));
+            let opts = SynthOptions {
+                frames: a.frames,
+                seed,
+                preset: *preset,
+                masks: a.masks,
+                ..SynthOptions::default()
+            };
+            generate(&dir, &opts, &|| {}).context("synthesising")?;
+            let capture = Capture::open(&dir)?;
+            let out = dir.join("tracks.json");
+            let args = super::track::Args {
+                capture: dir.clone(),
+                output: out.clone(),
+                frames: None,
+                engine: a.engine,
+                overlays: None,
+                resume: false,
+                force: true,
+                max_triangles: None,
+                settings: None,
+            };
+            let summary = super::track::track(&capture, &args)?;
+            seconds += summary.seconds;
+            evaluations += summary.evaluations;
+            frames += summary.tracked_now;
+            let report = super::track::score_records(&capture, &out, &summary.records)?
+                .context("ground truth")?;
+            let opened = jawtrack::energy::open_engine(
+                a.engine.backend,
+                Scene::from_capture(&capture),
+                a.engine.region,
+            )?;
+            let mut engine = opened.engine;
+            let vertices = {
+                let m = capture.lower.compacted();
+                m.positions
+                    .iter()
+                    .step_by((m.positions.len() / 4000).max(1))
+                    .map(|p| nalgebra::Vector3::new(p[0] as f64, p[1] as f64, p[2] as f64))
+                    .collect::<Vec<_>>()
+            };
+            for (frame, err) in &report.per_frame {
+                let truth = capture.gt_poses(*frame).context("ground truth")?;
+                let masks = capture.load_masks(*frame)?;
+                if masks.masks.iter().all(Option::is_none) {
+                    continue;
+                }
+                engine.set_frame(&masks)?;
+                let f = floor_poses(&capture, engine.as_ref(), &truth, *frame)?;
+                let (fj, tj) = (f.jaw(), truth.jaw());
+                let floor_jaw = vertices
+                    .iter()
+                    .map(|v| (fj.transform_point(v) - tj.transform_point(v)).norm())
+                    .sum::<f64>()
+                    / vertices.len() as f64;
+                upper.push(err[0]);
+                lower.push(err[1]);
+                jaw.push(err[2]);
+                floor.push(floor_jaw);
+                ratio.push(err[2] / floor_jaw.max(0.01));
+                eprintln!(
+                    "{preset:?} seed {seed} frame {frame}: jaw {:.3} mm, floor {:.3} mm",
+                    err[2], floor_jaw
+                );
+            }
+            for (k, s) in report.area_error_percent.iter().enumerate() {
+                area[k].push(s.median);
+            }
+        }
+        let two = |v: &[f64]| {
+            let s = Stats::of(v);
+            [s.median, s.p95]
+        };
+        rows.push(TrackRow {
+            preset: format!("{preset:?}"),
+            masks: format!("{:?}", a.masks),
+            frames,
+            seconds_per_frame: seconds / frames.max(1) as f64,
+            evaluations_per_frame: evaluations as f64 / frames.max(1) as f64,
+            jaw_error_mm: two(&jaw),
+            upper_error_mm: two(&upper),
+            lower_error_mm: two(&lower),
+            jaw_floor_mm: two(&floor),
+            median_ratio_to_floor: Stats::of(&ratio).median,
+            area_error_percent_median: [Stats::of(&area[0]).median, Stats::of(&area[1]).median],
+        });
+    }
+    if a.json {
+        println!("{}", serde_json::to_string_pretty(&rows)?);
+    } else {
+        println!(
+            "mean vertex error in mm (median / 95th percentile); floor = error of E's minimum found from the truth"
+        );
+        println!(
+            "{:<10} {:<8} {:>6} {:>8} {:>7} {:>13} {:>13} {:>13} {:>13} {:>11} {:>13}",
+            "preset",
+            "masks",
+            "frames",
+            "s/frame",
+            "evals",
+            "jaw",
+            "upper",
+            "lower",
+            "jaw floor",
+            "ratio",
+            "area err %"
+        );
+        for r in &rows {
+            println!(
+                "{:<10} {:<8} {:>6} {:>8.2} {:>7.0} {:>6.3}/{:<6.3} {:>6.3}/{:<6.3} {:>6.3}/{:<6.3} {:>6.3}/{:<6.3} {:>11.2} {:>6.2}/{:<6.2}",
+                r.preset,
+                r.masks,
+                r.frames,
+                r.seconds_per_frame,
+                r.evaluations_per_frame,
+                r.jaw_error_mm[0],
+                r.jaw_error_mm[1],
+                r.upper_error_mm[0],
+                r.upper_error_mm[1],
+                r.lower_error_mm[0],
+                r.lower_error_mm[1],
+                r.jaw_floor_mm[0],
+                r.jaw_floor_mm[1],
+                r.median_ratio_to_floor,
+                r.area_error_percent_median[0],
+                r.area_error_percent_median[1]
             );
         }
     }
