@@ -276,12 +276,7 @@ fn floor_poses(
     };
     let mut poses = *truth;
     for arch in Arch::BOTH {
-        let (lo, hi) = capture.mesh(arch).bounds();
-        let centre = nalgebra::Vector3::new(
-            (lo[0] + hi[0]) as f64,
-            (lo[1] + hi[1]) as f64,
-            (lo[2] + hi[2]) as f64,
-        ) * 0.5;
+        let centre = jawtrack::track::sequence::centre(capture, arch);
         let found = jawtrack::track::search(
             engine,
             arch,
@@ -343,14 +338,7 @@ pub fn track(a: TrackArgs) -> anyhow::Result<()> {
                 a.engine.region,
             )?;
             let mut engine = opened.engine;
-            let vertices = {
-                let m = capture.lower.compacted();
-                m.positions
-                    .iter()
-                    .step_by((m.positions.len() / 4000).max(1))
-                    .map(|p| nalgebra::Vector3::new(p[0] as f64, p[1] as f64, p[2] as f64))
-                    .collect::<Vec<_>>()
-            };
+            let vertices = jawtrack::track::score::sample_vertices(&capture.lower);
             for (frame, err) in &report.per_frame {
                 let truth = capture.gt_poses(*frame).context("ground truth")?;
                 let masks = capture.load_masks(*frame)?;
@@ -360,11 +348,7 @@ pub fn track(a: TrackArgs) -> anyhow::Result<()> {
                 engine.set_frame(&masks)?;
                 let f = floor_poses(&capture, engine.as_ref(), &truth, *frame)?;
                 let (fj, tj) = (f.jaw(), truth.jaw());
-                let floor_jaw = vertices
-                    .iter()
-                    .map(|v| (fj.transform_point(v) - tj.transform_point(v)).norm())
-                    .sum::<f64>()
-                    / vertices.len() as f64;
+                let floor_jaw = jawtrack::track::score::mean_distance(&vertices, &fj, &tj);
                 upper.push(err[0]);
                 lower.push(err[1]);
                 jaw.push(err[2]);

@@ -53,7 +53,7 @@ pub struct ScoreReport {
 }
 
 /// Vertices the error is measured on: every used vertex, thinned to at most ~4000.
-fn sample_vertices(mesh: &Mesh) -> Vec<nalgebra::Vector3<f64>> {
+pub fn sample_vertices(mesh: &Mesh) -> Vec<nalgebra::Vector3<f64>> {
     let m = mesh.compacted();
     let step = (m.positions.len() / 4000).max(1);
     m.positions
@@ -63,7 +63,7 @@ fn sample_vertices(mesh: &Mesh) -> Vec<nalgebra::Vector3<f64>> {
         .collect()
 }
 
-fn mean_distance(vertices: &[nalgebra::Vector3<f64>], a: &Pose, b: &Pose) -> f64 {
+pub fn mean_distance(vertices: &[nalgebra::Vector3<f64>], a: &Pose, b: &Pose) -> f64 {
     vertices
         .iter()
         .map(|v| (a.transform_point(v) - b.transform_point(v)).norm())

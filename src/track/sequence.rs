@@ -16,6 +16,7 @@ use crate::error::Result;
 use crate::geometry::Pose;
 
 #[derive(Debug, Clone, serde::Serialize, serde::Deserialize)]
+#[serde(default)]
 pub struct TrackSettings {
     pub search: SearchSettings,
     /// Passes over the two arches per frame (upper, then lower with the new upper). With
@@ -103,7 +104,7 @@ impl TrackState {
 }
 
 /// The centre of an arch in its model frame (rotations of the search turn about it).
-fn centre(capture: &Capture, arch: Arch) -> Vector3<f64> {
+pub fn centre(capture: &Capture, arch: Arch) -> Vector3<f64> {
     let (lo, hi) = capture.mesh(arch).bounds();
     Vector3::new(
         (lo[0] + hi[0]) as f64,
