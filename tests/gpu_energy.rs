@@ -5,10 +5,11 @@
 mod common;
 
 use common::template;
-use jawtrack::capture::{Arch, ArchPoses, Capture, FrameMasks, LabelMask, MaskMode, Mesh};
+use jawtrack::capture::{Arch, ArchPoses, Capture, FrameMasks, LabelMask, MaskMode};
 use jawtrack::energy::gpu::{GpuEnergy, GpuError};
+use jawtrack::energy::hand_counted::{camera, nothing, square};
 use jawtrack::energy::{CpuEnergy, EnergyEngine, Region, Scene};
-use jawtrack::geometry::{Camera, Pose};
+use jawtrack::geometry::Pose;
 use jawtrack::synth::{MaskKind, Preset};
 use nalgebra::Vector3;
 use rand::{RngExt, SeedableRng};
@@ -25,36 +26,6 @@ fn gpu(scene: Scene, region: Region) -> Option<GpuEnergy> {
             None
         }
         Err(e) => panic!("{e}"),
-    }
-}
-
-fn camera() -> Camera {
-    Camera {
-        name: "c".into(),
-        width: 100,
-        height: 80,
-        fx: 100.0,
-        fy: 100.0,
-        cx: 50.0,
-        cy: 40.0,
-        distortion: [0.0; 5],
-        camera_from_world: Pose::IDENTITY,
-    }
-}
-
-/// A 20 mm square (20 x 20 px at z = 100), its top half BOI.
-fn square() -> Mesh {
-    Mesh {
-        positions: vec![
-            [-10.0, -10.0, 0.0],
-            [10.0, -10.0, 0.0],
-            [10.0, 0.0, 0.0],
-            [-10.0, 0.0, 0.0],
-            [10.0, 10.0, 0.0],
-            [-10.0, 10.0, 0.0],
-        ],
-        triangles: vec![[0, 1, 2], [0, 2, 3], [3, 2, 4], [3, 4, 5]],
-        boi: vec![true, true, false, false],
     }
 }
 
@@ -80,11 +51,7 @@ fn exact_counts_on_a_hand_countable_scene() {
     let scene = Scene {
         cameras: vec![Some(camera())],
         upper: square(),
-        lower: Mesh {
-            positions: vec![[0.0; 3]; 3],
-            triangles: vec![[0, 1, 2]],
-            boi: vec![false],
-        },
+        lower: nothing(),
         mode: MaskMode::PerArch { upper: 1, lower: 2 },
     };
     for region in [Region::Footprint, Region::FullFrame] {

@@ -190,43 +190,7 @@ mod tests {
     use crate::geometry::Pose;
     use nalgebra::Vector3;
 
-    fn camera() -> Camera {
-        Camera {
-            name: "c".into(),
-            width: 100,
-            height: 80,
-            fx: 100.0,
-            fy: 100.0,
-            cx: 50.0,
-            cy: 40.0,
-            distortion: [0.0; 5],
-            camera_from_world: Pose::IDENTITY,
-        }
-    }
-
-    /// A 20 mm square at z = 100 (20 x 20 px); its top half (rows 30..40) is BOI.
-    fn square_mesh() -> Mesh {
-        Mesh {
-            positions: vec![
-                [-10.0, -10.0, 0.0],
-                [10.0, -10.0, 0.0],
-                [10.0, 0.0, 0.0],
-                [-10.0, 0.0, 0.0],
-                [10.0, 10.0, 0.0],
-                [-10.0, 10.0, 0.0],
-            ],
-            triangles: vec![[0, 1, 2], [0, 2, 3], [3, 2, 4], [3, 4, 5]],
-            boi: vec![true, true, false, false],
-        }
-    }
-
-    fn far_away() -> Mesh {
-        Mesh {
-            positions: vec![[0.0; 3]; 3],
-            triangles: vec![[0, 1, 2]],
-            boi: vec![false],
-        }
-    }
+    use super::super::hand_counted::{camera, nothing as far_away, square as square_mesh};
 
     fn engine(mask_rect: (u32, u32, u32, u32), mode: MaskMode) -> CpuEnergy {
         let cam = camera();

@@ -5,6 +5,8 @@
 pub mod backend;
 pub mod cpu;
 pub mod gpu;
+#[doc(hidden)]
+pub mod hand_counted;
 pub mod raster;
 
 use crate::capture::{Arch, ArchPoses, Capture, FrameMasks, MaskMode, Mesh};
