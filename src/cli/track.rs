@@ -159,10 +159,10 @@ pub fn track(capture: &Capture, a: &Args) -> anyhow::Result<Summary> {
         &settings,
         todo,
         &mut state,
-        &mut |r| {
+        &mut |r, masks| {
             writer.push(r)?;
             if let Some(dir) = &a.overlays {
-                overlay::write_overlays(dir, capture, &capture.load_masks(r.frame)?, &r.poses)?;
+                overlay::write_overlays(dir, capture, masks, &r.poses)?;
             }
             evaluations += r.evaluations;
             tracked_now += 1;

@@ -54,10 +54,6 @@ impl CpuEnergy {
         }
     }
 
-    pub fn scene(&self) -> &Scene {
-        &self.scene
-    }
-
     fn camera_counts(&self, cam_index: usize, arch: Arch, poses: &ArchPoses) -> Counts {
         let (Some(cam), Some(prep)) = (&self.scene.cameras[cam_index], &self.frame[cam_index])
         else {

@@ -118,15 +118,17 @@ fn extrapolate(last: &Pose, before: &Pose) -> Pose {
     last.compose(&before.inverse()).compose(last)
 }
 
-/// Track `frames` (in order), starting from `state`; `on_frame` receives every frame.
+/// Track `frames` (in order), starting from `state`; `on_frame` receives every frame with its
+/// masks (for overlays, without reading them again).
 pub fn track_frames(
     capture: &Capture,
     engine: &mut dyn EnergyEngine,
     settings: &TrackSettings,
     frames: std::ops::Range<u32>,
     state: &mut TrackState,
-    on_frame: &mut dyn FnMut(&FrameResult) -> Result<()>,
+    on_frame: &mut dyn FnMut(&FrameResult, &FrameMasks) -> Result<()>,
 ) -> Result<()> {
+    let centres = [centre(capture, Arch::Upper), centre(capture, Arch::Lower)];
     std::thread::scope(|scope| {
         let (tx, rx) = sync_channel::<(u32, Result<FrameMasks>)>(2);
         let reader_frames = frames.clone();
@@ -139,12 +141,13 @@ pub fn track_frames(
         });
         for (frame, masks) in rx {
             let started = Instant::now();
-            let result = track_frame(capture, engine, settings, frame, &masks?, state)?;
+            let masks = masks?;
+            let result = track_frame(capture, engine, settings, &centres, frame, &masks, state)?;
             let result = FrameResult {
                 seconds: started.elapsed().as_secs_f64(),
                 ..result
             };
-            on_frame(&result)?;
+            on_frame(&result, &masks)?;
         }
         Ok(())
     })
@@ -154,6 +157,7 @@ fn track_frame(
     capture: &Capture,
     engine: &mut dyn EnergyEngine,
     settings: &TrackSettings,
+    centres: &[Vector3<f64>; 2],
     frame: u32,
     masks: &FrameMasks,
     state: &mut TrackState,
@@ -212,7 +216,7 @@ fn track_frame(
                 arch,
                 &poses,
                 *poses.get(arch),
-                &centre(capture, arch),
+                &centres[(arch == Arch::Lower) as usize],
                 &settings.search,
                 seed,
             )?;
