@@ -8,6 +8,7 @@ pub mod capture;
 pub mod energy;
 pub mod error;
 pub mod geometry;
+pub mod rig;
 pub mod synth;
 pub mod track;
 

@@ -39,6 +39,7 @@ pub fn run(a: Args) -> anyhow::Result<()> {
         masks: MaskKind::PerArch,
         meshes: None,
         force,
+        no_masks: false,
     };
     println!(
         "== 1. synthesise a {:?} capture: three cameras, half-resolution masks",

@@ -4,6 +4,7 @@ mod bench;
 mod demo;
 mod energy;
 mod mesh;
+mod rig;
 mod score;
 mod synth;
 mod track;
@@ -35,6 +36,9 @@ enum Command {
     Score(score::Args),
     /// Print the energy terms of a frame per camera and arch.
     Energy(energy::Args),
+    /// Learn the three-parameter jaw rig from jaw poses, and use it.
+    #[command(subcommand)]
+    Rig(rig::Command),
     /// Mesh tools.
     #[command(subcommand)]
     Mesh(mesh::Command),
@@ -52,6 +56,7 @@ pub fn main() -> ExitCode {
         Command::Track(a) => track::run(a),
         Command::Score(a) => score::run(a),
         Command::Energy(a) => energy::run(a),
+        Command::Rig(c) => rig::run(c),
         Command::Mesh(c) => mesh::run(c),
         Command::Bench(c) => bench::run(c),
     };

@@ -26,6 +26,10 @@ pub struct Args {
     /// Replace OUT if it exists.
     #[arg(long)]
     pub force: bool,
+    /// Write no masks (meshes, cameras, init and gt/poses.json only): ground-truth motion for
+    /// `jawtrack rig`, quickly.
+    #[arg(long)]
+    pub no_masks: bool,
     /// Print the report as JSON.
     #[arg(long)]
     pub json: bool,
@@ -39,6 +43,7 @@ pub fn run(a: Args) -> anyhow::Result<()> {
         masks: a.masks,
         meshes: a.meshes,
         force: a.force,
+        no_masks: a.no_masks,
     };
     let report = generate(&a.out, &opts)?;
     if a.json {

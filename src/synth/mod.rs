@@ -68,6 +68,9 @@ pub struct SynthOptions {
     pub meshes: Option<PathBuf>,
     /// Replace `out` if it exists.
     pub force: bool,
+    /// Write no masks: meshes, cameras, init and ground truth only (for learning a rig from
+    /// the motion; every frame of such a capture is `no-data` to the tracker).
+    pub no_masks: bool,
 }
 
 impl Default for SynthOptions {
@@ -79,6 +82,7 @@ impl Default for SynthOptions {
             masks: MaskKind::PerArch,
             meshes: None,
             force: false,
+            no_masks: false,
         }
     }
 }
@@ -461,6 +465,9 @@ fn write_capture(
             let show = s.lip_show(index, opts);
             let mut stats = Vec::with_capacity(s.mask_cameras.len());
             for (c, cam) in s.mask_cameras.iter().enumerate() {
+                if opts.no_masks {
+                    break;
+                }
                 let mut rng = ChaCha8Rng::seed_from_u64(
                     opts.seed
                         ^ ((index as u64) << 8 | c as u64).wrapping_mul(0x9E37_79B9_7F4A_7C15),
@@ -534,7 +541,7 @@ fn write_capture(
         let mut mask = [0u64; 2];
         let mut alone = [0u64; 2];
         for (_, _, _, stats) in &frames {
-            let m = &stats[c];
+            let Some(m) = stats.get(c) else { continue };
             with_mask += m.png.is_some() as u32;
             for k in 0..2 {
                 mask[k] += m.mask_pixels[k];

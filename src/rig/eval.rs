@@ -1,0 +1,181 @@
+//! The paper's figures as numbers: reconstruction error per pose (Fig. 12) for PCA and NLPCA
+//! with 1..6 components and for the three-parameter rig; the distance from random rig poses
+//! to the nearest captured pose, with and without the d1-dependent ranges (Fig. 13).
+
+use nalgebra::Vector6;
+use rand::SeedableRng;
+use rand_chacha::ChaCha8Rng;
+use rayon::prelude::*;
+use serde::Serialize;
+
+use super::metric::MeshMetric;
+use super::model::JawRig;
+use super::nlpca::Nlpca;
+use crate::geometry::Pose;
+
+/// Summary of a set of errors (mm).
+#[derive(Debug, Clone, Copy, Serialize, PartialEq)]
+pub struct Stats {
+    pub mean: f64,
+    pub median: f64,
+    pub p95: f64,
+    pub max: f64,
+}
+
+impl Stats {
+    pub fn of(values: &[f64]) -> Stats {
+        if values.is_empty() {
+            return Stats {
+                mean: f64::NAN,
+                median: f64::NAN,
+                p95: f64::NAN,
+                max: f64::NAN,
+            };
+        }
+        let mut v = values.to_vec();
+        v.sort_by(f64::total_cmp);
+        let q = |p: f64| v[((v.len() - 1) as f64 * p).round() as usize];
+        Stats {
+            mean: v.iter().sum::<f64>() / v.len() as f64,
+            median: q(0.5),
+            p95: q(0.95),
+            max: v[v.len() - 1],
+        }
+    }
+}
+
+/// One named series of per-pose errors (mm).
+#[derive(Debug, Clone, Serialize)]
+pub struct Series {
+    pub name: String,
+    pub stats: Stats,
+    pub errors_mm: Vec<f64>,
+}
+
+impl Series {
+    pub fn new(name: impl Into<String>, errors_mm: Vec<f64>) -> Series {
+        Series {
+            name: name.into(),
+            stats: Stats::of(&errors_mm),
+            errors_mm,
+        }
+    }
+}
+
+/// Fig. 12: reconstruction errors of the captured poses.
+#[derive(Debug, Clone, Serialize)]
+pub struct Reconstruction {
+    /// PCA with 1..6 components.
+    pub pca: Vec<Series>,
+    /// NLPCA with 1..5 components (the rig's network), and 6 when a six-component network
+    /// is given.
+    pub nlpca: Vec<Series>,
+    /// The three-parameter rig: encode, decode.
+    pub rig: Series,
+    /// Encode, clamp to the valid ranges, decode (what `rig reconstruct` writes).
+    pub rig_clamped: Series,
+    /// The paper's construction (Φ2, Φ3 from D23, D45; extraction functions).
+    pub paper_rig: Series,
+    /// Share of the poses whose parameters are inside the valid ranges.
+    pub valid_share: f64,
+}
+
+fn errors(poses: &[Pose], metric: &MeshMetric, rebuild: impl Fn(&Pose) -> Pose + Sync) -> Vec<f64> {
+    poses
+        .par_iter()
+        .map(|p| metric.max_distance(p, &rebuild(p)))
+        .collect()
+}
+
+pub fn reconstruction(
+    rig: &JawRig,
+    poses: &[Pose],
+    metric: &MeshMetric,
+    nlpca6: Option<&Nlpca>,
+) -> Reconstruction {
+    let coords = &rig.coords;
+    let pca = (1..=6)
+        .map(|k| {
+            Series::new(
+                format!("PCA-{k}"),
+                errors(poses, metric, |p| {
+                    coords.pose(&rig.pca.reconstruct(&coords.vector(p), k))
+                }),
+            )
+        })
+        .collect();
+    let by_network = |net: &Nlpca, k: usize| {
+        Series::new(
+            format!("NLPCA-{k}"),
+            errors(poses, metric, |p| {
+                let v = net.reconstruct(coords.vector(p).as_slice(), k);
+                coords.pose(&Vector6::from_column_slice(&v))
+            }),
+        )
+    };
+    let mut nlpca: Vec<Series> = (1..=rig.network.components)
+        .map(|k| by_network(&rig.network, k))
+        .collect();
+    if let Some(net) = nlpca6 {
+        nlpca.push(by_network(net, net.components));
+    }
+    let params: Vec<[f64; 3]> = poses.par_iter().map(|p| rig.encode(p)).collect();
+    let valid = params.iter().filter(|d| rig.is_valid(d)).count();
+    let rebuilt = |clamp: bool| -> Vec<f64> {
+        poses
+            .par_iter()
+            .zip(&params)
+            .map(|(p, d)| {
+                let d = if clamp { rig.clamp(d) } else { *d };
+                metric.max_distance(p, &rig.pose(&d))
+            })
+            .collect()
+    };
+    Reconstruction {
+        pca,
+        nlpca,
+        rig: Series::new("rig", rebuilt(false)),
+        rig_clamped: Series::new("rig, clamped", rebuilt(true)),
+        paper_rig: Series::new(
+            "paper's D23/D45",
+            errors(poses, metric, |p| rig.paper_pose(&rig.paper_extract(p))),
+        ),
+        valid_share: valid as f64 / poses.len().max(1) as f64,
+    }
+}
+
+/// Fig. 13: random rig poses, each scored by its distance to the nearest captured pose.
+#[derive(Debug, Clone, Serialize)]
+pub struct Sampled {
+    pub dynamic_ranges: Series,
+    pub static_ranges: Series,
+}
+
+pub fn sampled(
+    rig: &JawRig,
+    poses: &[Pose],
+    metric: &MeshMetric,
+    count: usize,
+    seed: u64,
+) -> Sampled {
+    let mut rng = ChaCha8Rng::seed_from_u64(seed);
+    let dynamic: Vec<[f64; 3]> = (0..count)
+        .map(|_| rig.ranges.sample_dynamic(&mut rng))
+        .collect();
+    let fixed: Vec<[f64; 3]> = (0..count)
+        .map(|_| rig.ranges.sample_static(&mut rng))
+        .collect();
+    let nearest = |ds: &[[f64; 3]]| -> Vec<f64> {
+        ds.par_iter()
+            .map(|d| {
+                metric
+                    .nearest(&rig.pose(d), poses)
+                    .map_or(f64::NAN, |(_, e)| e)
+            })
+            .collect()
+    };
+    Sampled {
+        dynamic_ranges: Series::new("with d1-dependent ranges", nearest(&dynamic)),
+        static_ranges: Series::new("with fixed ranges", nearest(&fixed)),
+    }
+}

@@ -1,0 +1,138 @@
+//! Jaw poses in and out: a tracks.json (or gt/poses.json), whose frames give the upper and
+//! lower arch poses, or a jaw-pose file (`jawtrack-jaw/1`) that gives `upper_from_lower`
+//! directly.
+
+use std::path::Path;
+
+use serde::{Deserialize, Serialize};
+
+use crate::capture::json::{FrameRecordJson, PoseJson, TRACKS_FORMAT, read_json};
+use crate::capture::write_json_atomic;
+use crate::error::{Error, Result};
+use crate::geometry::{Pose, jaw_pose};
+
+pub const JAW_FORMAT: &str = "jawtrack-jaw/1";
+
+/// One jaw pose, `upper_from_lower`, as the jaw-pose file stores it.
+#[derive(Debug, Clone, Serialize, Deserialize)]
+pub struct JawRecordJson {
+    pub frame: u32,
+    pub rotation: [[f64; 3]; 3],
+    pub translation: [f64; 3],
+}
+
+#[derive(Debug, Clone, Serialize, Deserialize)]
+pub struct JawFileJson {
+    pub format: String,
+    pub poses: Vec<JawRecordJson>,
+}
+
+/// Either file: the format field says which.
+#[derive(Deserialize)]
+struct AnyPosesJson {
+    format: Option<String>,
+    frames: Option<Vec<FrameRecordJson>>,
+    poses: Option<Vec<JawRecordJson>>,
+}
+
+/// Jaw poses (`upper_from_lower`) with their frame numbers.
+#[derive(Debug, Clone, Default)]
+pub struct JawPoses {
+    pub frames: Vec<u32>,
+    pub poses: Vec<Pose>,
+    /// Frames of a tracks.json left out because their status was not `ok`.
+    pub skipped: usize,
+}
+
+impl JawPoses {
+    pub fn len(&self) -> usize {
+        self.poses.len()
+    }
+
+    pub fn is_empty(&self) -> bool {
+        self.poses.is_empty()
+    }
+}
+
+/// Read a tracks.json / gt/poses.json (frames whose status is `ok` or absent) or a
+/// `jawtrack-jaw/1` file.
+pub fn read_jaw_poses(path: &Path) -> Result<JawPoses> {
+    let any: AnyPosesJson = read_json(path, "jaw poses (tracks.json or jawtrack-jaw/1)")?;
+    let mut out = JawPoses::default();
+    match any.format.as_deref() {
+        Some(JAW_FORMAT) => {
+            let poses = any.poses.ok_or_else(|| {
+                Error::invalid(
+                    path,
+                    "poses",
+                    format!("missing: a {JAW_FORMAT} file lists its poses under `poses`"),
+                )
+            })?;
+            for (i, p) in poses.iter().enumerate() {
+                let pj = PoseJson {
+                    rotation: p.rotation,
+                    translation: p.translation,
+                };
+                out.frames.push(p.frame);
+                out.poses.push(pj.to_pose(path, &format!("poses[{i}]"))?);
+            }
+        }
+        None | Some(TRACKS_FORMAT) => {
+            let frames = any.frames.ok_or_else(|| {
+                Error::invalid(
+                    path,
+                    "frames",
+                    format!("missing: expected a tracks file ({TRACKS_FORMAT}) with `frames`, or a jaw-pose file with \"format\": \"{JAW_FORMAT}\""),
+                )
+            })?;
+            for (i, f) in frames.iter().enumerate() {
+                if f.status.as_deref().is_some_and(|s| s != "ok") {
+                    out.skipped += 1;
+                    continue;
+                }
+                let upper = f.upper.to_pose(path, &format!("frames[{i}].upper"))?;
+                let lower = f.lower.to_pose(path, &format!("frames[{i}].lower"))?;
+                out.frames.push(f.frame);
+                out.poses.push(jaw_pose(&upper, &lower));
+            }
+        }
+        Some(other) => {
+            return Err(Error::invalid(
+                path,
+                "format",
+                format!("unknown format {other:?}: expected {TRACKS_FORMAT:?} or {JAW_FORMAT:?}"),
+            ));
+        }
+    }
+    if out.poses.is_empty() {
+        return Err(Error::invalid(
+            path,
+            "frames",
+            format!(
+                "no usable jaw poses ({} frames skipped for a status other than `ok`)",
+                out.skipped
+            ),
+        ));
+    }
+    Ok(out)
+}
+
+/// Write jaw poses as a `jawtrack-jaw/1` file, atomically.
+pub fn write_jaw_poses(path: &Path, frames: &[u32], poses: &[Pose]) -> Result<()> {
+    let file = JawFileJson {
+        format: JAW_FORMAT.into(),
+        poses: frames
+            .iter()
+            .zip(poses)
+            .map(|(&frame, p)| {
+                let pj = PoseJson::from(p);
+                JawRecordJson {
+                    frame,
+                    rotation: pj.rotation,
+                    translation: pj.translation,
+                }
+            })
+            .collect(),
+    };
+    write_json_atomic(path, &file)
+}

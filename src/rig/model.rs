@@ -1,0 +1,481 @@
+//! The three-parameter jaw rig (the paper's Eq. 5):
+//! Φ(d1, d2, d3) = Φ1(d1) + Φ2(d2) + Φ3(d3) in se(3), mapped back with exp.
+//!
+//! Φ1(d1) = Φgen(d1, 0, 0, 0, 0) of a five-component hierarchical NLPCA; Φ2 and Φ3 are
+//! one-component NLPCAs of D23 = {Φgen(0, c2, c3, 0, 0)} and D45 = {Φgen(0, 0, 0, c4, c5)} over
+//! the training data. Each part contains the network's base point Φgen(0); the sum counts it
+//! once (Φ1 + (Φ2 − Φgen(0)) + (Φ3 − Φgen(0))), which is the paper's sum when, as in its
+//! scaled space, Φgen(0) ≈ 0.
+//!
+//! Parameters: each d_i is the component times a gain that makes it an arc length along its
+//! mode in the network's input units (where the widest coordinate has a standard deviation of
+//! 0.1, as in Scholz's NLPCA; the paper's d1 runs over about −0.2..0.33 in such units) and
+//! points the intuitive way: d1 up opens the mouth, d2 up moves the chin to the subject's
+//! left (+x), d3 up moves it forward (+z).
+
+use std::path::Path;
+
+use nalgebra::{Matrix3, Vector3, Vector6};
+use serde::{Deserialize, Serialize};
+
+use super::additive::{self, AdditiveModes, AdditiveReport, AdditiveSettings};
+use super::coords::Coordinates;
+use super::metric::MeshMetric;
+use super::nlpca::{Nlpca, NlpcaError, NlpcaSettings, TrainReport};
+use super::pca::Pca;
+use super::ranges::{RangeError, Ranges};
+use crate::capture::json::read_json;
+use crate::capture::write_json_atomic;
+use crate::error::{Error, Result};
+use crate::geometry::Pose;
+
+pub const RIG_FORMAT: &str = "jawtrack-rig/1";
+
+/// The components of the first network: opening, two of lateral excursion, two of
+/// protrusion (the paper's finding; its sixth adds only noise).
+pub const NETWORK_COMPONENTS: usize = 5;
+
+#[derive(Debug, Clone, Serialize, Deserialize, PartialEq)]
+#[serde(default, deny_unknown_fields)]
+pub struct RigSettings {
+    /// The five-component network.
+    pub network: NlpcaSettings,
+    /// The one-component networks of the paper's D23 and D45.
+    pub mode: NlpcaSettings,
+    /// The rig's three modes, fitted together.
+    pub modes: AdditiveSettings,
+    /// Alpha radius of the range shapes, in parameter units (the paper: 0.12).
+    pub alpha: f64,
+    /// Gauss-Newton steps when encoding a pose (0: the extraction functions alone).
+    pub encode_steps: usize,
+}
+
+impl Default for RigSettings {
+    fn default() -> Self {
+        RigSettings {
+            network: NlpcaSettings {
+                hidden: 10,
+                max_iterations: 3000,
+                ..Default::default()
+            },
+            mode: NlpcaSettings {
+                hidden: 6,
+                max_iterations: 1500,
+                ..Default::default()
+            },
+            modes: AdditiveSettings::default(),
+            alpha: 0.12,
+            encode_steps: 8,
+        }
+    }
+}
+
+#[derive(Debug, thiserror::Error)]
+pub enum RigError {
+    #[error("learning the rig needs at least {need} jaw poses, got {got}")]
+    TooFewPoses { need: usize, got: usize },
+    #[error("the {stage} network: {source}")]
+    Nlpca {
+        stage: &'static str,
+        #[source]
+        source: NlpcaError,
+    },
+    #[error("valid ranges: {0}")]
+    Ranges(#[from] RangeError),
+}
+
+/// How learning went.
+#[derive(Debug, Clone, Serialize, Deserialize)]
+pub struct Training {
+    pub poses: usize,
+    pub seconds: f64,
+    pub network: TrainReport,
+    pub lateral: TrainReport,
+    pub protrusion: TrainReport,
+    pub modes: AdditiveReport,
+}
+
+/// The paper's construction of Φ2 and Φ3 (one-component NLPCAs of D23 and D45), kept for
+/// comparison: it assumes components 2-3 are lateral excursion and 4-5 protrusion, which holds
+/// for the paper's data but not for motion whose remainder after opening is two-dimensional
+/// (then D23 holds both modes and D45 almost nothing). `rig eval` reports its error.
+#[derive(Debug, Clone, Serialize, Deserialize)]
+pub struct PaperModes {
+    pub lateral: Nlpca,
+    pub protrusion: Nlpca,
+    /// Φgen(0), in the vector units of [`Coordinates`].
+    pub base: [f64; 6],
+}
+
+#[derive(Debug, Clone, Serialize, Deserialize)]
+pub struct JawRig {
+    pub format: String,
+    pub coords: Coordinates,
+    /// Linear PCA of the same vectors, for comparison and its singular values.
+    pub pca: Pca,
+    /// The five-component hierarchical NLPCA (its input scaling is the rig's).
+    pub network: Nlpca,
+    pub paper: PaperModes,
+    /// The rig: Φ(d) = mean + (Σ_i g_i(d_i / gain_i) + bias) / scale, in the network's
+    /// normalised units.
+    pub modes: AdditiveModes,
+    /// d_i = gain_i · (the mode's own parameter): sign and arc-length scale.
+    pub gain: [f64; 3],
+    /// The parameters of the training poses (encoding starts from the nearest one).
+    pub training_params: Vec<[f64; 3]>,
+    pub ranges: Ranges,
+    /// Extreme vertices of the mesh the rig was learned with (lower frame, mm): encoding
+    /// fits these, so the rig file needs no mesh.
+    pub probes_mm: Vec<[f64; 3]>,
+    pub settings: RigSettings,
+    pub training: Training,
+}
+
+/// The smallest training set: enough for the five-component network to be determined at all.
+pub const MIN_POSES: usize = 12;
+
+/// Sign and arc-length gain of each mode: `speed(k, raw)` is |dΦ_k/draw| in normalised units;
+/// the sign makes d_k move the front of the mesh along `direction[k]`.
+fn gains(raw: &[[f64; 3]], moved: &[Vector3<f64>], speed: impl Fn(usize, f64) -> f64) -> [f64; 3] {
+    let direction = [-Vector3::y(), Vector3::x(), Vector3::z()];
+    let n = raw.len().max(1) as f64;
+    std::array::from_fn(|k| {
+        let mean_speed = raw.iter().map(|r| speed(k, r[k])).sum::<f64>() / n;
+        let mean_c = raw.iter().map(|r| r[k]).sum::<f64>() / n;
+        let mean_m = moved.iter().map(|m| m.dot(&direction[k])).sum::<f64>() / n;
+        let cov: f64 = raw
+            .iter()
+            .zip(moved)
+            .map(|(r, m)| (r[k] - mean_c) * (m.dot(&direction[k]) - mean_m))
+            .sum();
+        let g = mean_speed.max(1e-12);
+        if cov < 0.0 { -g } else { g }
+    })
+}
+
+/// |d f / dc| by central differences.
+fn speed_of(f: impl Fn(f64) -> Vec<f64>, c: f64) -> f64 {
+    let h = 1e-4;
+    let (a, b) = (f(c + h), f(c - h));
+    a.iter()
+        .zip(&b)
+        .map(|(p, q)| (p - q).powi(2))
+        .sum::<f64>()
+        .sqrt()
+        / (2.0 * h)
+}
+
+impl JawRig {
+    pub fn learn(
+        poses: &[Pose],
+        metric: &MeshMetric,
+        settings: &RigSettings,
+    ) -> Result<JawRig, RigError> {
+        let started = std::time::Instant::now();
+        if poses.len() < MIN_POSES {
+            return Err(RigError::TooFewPoses {
+                need: MIN_POSES,
+                got: poses.len(),
+            });
+        }
+        let coords = Coordinates::for_mesh(metric);
+        let vectors: Vec<Vector6<f64>> = poses.iter().map(|p| coords.vector(p)).collect();
+        let pca = Pca::fit(&vectors);
+        let samples: Vec<Vec<f64>> = vectors.iter().map(|v| v.as_slice().to_vec()).collect();
+        let nl = |stage| move |source| RigError::Nlpca { stage, source };
+        let (network, network_report) =
+            Nlpca::train(&samples, NETWORK_COMPONENTS, &settings.network)
+                .map_err(nl("five-component"))?;
+
+        // The paper's D23 and D45, each reduced to one dimension.
+        let codes: Vec<Vec<f64>> = samples.iter().map(|s| network.extract(s)).collect();
+        let part = |keep: [usize; 2]| -> Vec<Vec<f64>> {
+            codes
+                .iter()
+                .map(|c| {
+                    let mut z = vec![0.0; NETWORK_COMPONENTS];
+                    for k in keep {
+                        z[k] = c[k];
+                    }
+                    network.generate(&z)
+                })
+                .collect()
+        };
+        let (lateral, lateral_report) =
+            Nlpca::train(&part([1, 2]), 1, &settings.mode).map_err(nl("lateral (D23)"))?;
+        let (protrusion, protrusion_report) =
+            Nlpca::train(&part([3, 4]), 1, &settings.mode).map_err(nl("protrusion (D45)"))?;
+        let base = network.generate(&[0.0; NETWORK_COMPONENTS]);
+        let paper = PaperModes {
+            lateral,
+            protrusion,
+            base: std::array::from_fn(|k| base[k]),
+        };
+
+        // The rig's modes, fitted as one additive model in the network's normalised units.
+        let front = metric
+            .probes()
+            .iter()
+            .copied()
+            .max_by(|a, b| a.z.total_cmp(&b.z))
+            .unwrap_or_default();
+        let moved: Vec<Vector3<f64>> = poses.iter().map(|p| p.transform_point(&front)).collect();
+        let directions = mode_directions(&pca, &vectors, &moved);
+        let normalised: Vec<f64> = samples
+            .iter()
+            .flat_map(|s| {
+                s.iter()
+                    .zip(&network.mean)
+                    .map(|(v, m)| (v - m) * network.scale)
+            })
+            .collect();
+        let (modes, raw, modes_report) =
+            additive::fit(&normalised, 6, &directions, &settings.modes);
+        let gain = gains(&raw, &moved, |k, c| speed_of(|c| modes.mode(k, c), c));
+        let training_params: Vec<[f64; 3]> = raw
+            .iter()
+            .map(|r| std::array::from_fn(|k| r[k] * gain[k]))
+            .collect();
+        let ranges = Ranges::build(&training_params, settings.alpha)?;
+        Ok(JawRig {
+            format: RIG_FORMAT.into(),
+            coords,
+            pca,
+            network,
+            paper,
+            modes,
+            gain,
+            training_params,
+            ranges,
+            probes_mm: metric.probes().iter().map(|p| [p.x, p.y, p.z]).collect(),
+            settings: settings.clone(),
+            training: Training {
+                poses: poses.len(),
+                seconds: started.elapsed().as_secs_f64(),
+                network: network_report,
+                lateral: lateral_report,
+                protrusion: protrusion_report,
+                modes: modes_report,
+            },
+        })
+    }
+
+    /// Φ(d) in the vector units of [`Coordinates`].
+    pub fn vector(&self, d: &[f64; 3]) -> Vector6<f64> {
+        let raw: [f64; 3] = std::array::from_fn(|k| d[k] / self.gain[k]);
+        let x = self.modes.generate(&raw);
+        Vector6::from_fn(|q, _| self.network.mean[q] + x[q] / self.network.scale)
+    }
+
+    /// The jaw pose `upper_from_lower` for parameters `d`.
+    pub fn pose(&self, d: &[f64; 3]) -> Pose {
+        self.coords.pose(&self.vector(d))
+    }
+
+    /// The paper's rig: Φ1(c1) + Φ2(e2) + Φ3(e3) (base counted once), and its extraction
+    /// functions (raw components, no gain).
+    pub fn paper_extract(&self, pose: &Pose) -> [f64; 3] {
+        let c = self.network.extract(self.coords.vector(pose).as_slice());
+        let part = |keep: [usize; 2]| {
+            let mut z = [0.0; NETWORK_COMPONENTS];
+            for k in keep {
+                z[k] = c[k];
+            }
+            self.network.generate(&z)
+        };
+        [
+            c[0],
+            self.paper.lateral.extract(&part([1, 2]))[0],
+            self.paper.protrusion.extract(&part([3, 4]))[0],
+        ]
+    }
+
+    pub fn paper_pose(&self, raw: &[f64; 3]) -> Pose {
+        let parts = [
+            self.network.generate(&[raw[0]]),
+            self.paper.lateral.generate(&[raw[1]]),
+            self.paper.protrusion.generate(&[raw[2]]),
+        ];
+        let v = Vector6::from_fn(|q, _| {
+            parts[0][q] + parts[1][q] + parts[2][q] - 2.0 * self.paper.base[q]
+        });
+        self.coords.pose(&v)
+    }
+
+    /// The parameters that bring the rig closest to `pose` (the probes' squared distances):
+    /// from the nearest training pose's parameters, a few damped Gauss-Newton steps.
+    pub fn encode(&self, pose: &Pose) -> [f64; 3] {
+        let probes: Vec<Vector3<f64>> = self.probes_mm.iter().map(|p| Vector3::from(*p)).collect();
+        let target: Vec<Vector3<f64>> = probes.iter().map(|p| pose.transform_point(p)).collect();
+        let residual = |d: &[f64; 3]| -> Vec<f64> {
+            let q = self.pose(d);
+            probes
+                .iter()
+                .zip(&target)
+                .flat_map(|(p, t)| {
+                    let e = q.transform_point(p) - t;
+                    [e.x, e.y, e.z]
+                })
+                .collect()
+        };
+        let cost = |r: &[f64]| r.iter().map(|v| v * v).sum::<f64>();
+        let v = self.coords.vector(pose);
+        let mut d = self
+            .training_params
+            .iter()
+            .map(|d| (d, (self.vector(d) - v).norm_squared()))
+            .min_by(|a, b| a.1.total_cmp(&b.1))
+            .map_or([0.0; 3], |(d, _)| *d);
+        let mut r = residual(&d);
+        let mut lambda = 1e-3;
+        for _ in 0..self.settings.encode_steps {
+            let h = 1e-6;
+            let cols: Vec<Vec<f64>> = (0..3)
+                .map(|k| {
+                    let (mut a, mut b) = (d, d);
+                    a[k] += h;
+                    b[k] -= h;
+                    residual(&a)
+                        .iter()
+                        .zip(residual(&b))
+                        .map(|(p, q)| (p - q) / (2.0 * h))
+                        .collect()
+                })
+                .collect();
+            let jtj =
+                Matrix3::from_fn(|i, j| cols[i].iter().zip(&cols[j]).map(|(a, b)| a * b).sum());
+            let jtr = Vector3::from_fn(|i, _| cols[i].iter().zip(&r).map(|(a, b)| a * b).sum());
+            let mut improved = false;
+            for _ in 0..6 {
+                let damped = jtj + Matrix3::from_diagonal(&jtj.diagonal()) * lambda;
+                let Some(step) = damped.cholesky().map(|c| c.solve(&-jtr)) else {
+                    lambda *= 10.0;
+                    continue;
+                };
+                let trial = [d[0] + step[0], d[1] + step[1], d[2] + step[2]];
+                let rt = residual(&trial);
+                if cost(&rt) < cost(&r) {
+                    d = trial;
+                    r = rt;
+                    lambda = (lambda * 0.3).max(1e-9);
+                    improved = true;
+                    break;
+                }
+                lambda *= 10.0;
+            }
+            if !improved {
+                break;
+            }
+        }
+        d
+    }
+
+    pub fn is_valid(&self, d: &[f64; 3]) -> bool {
+        self.ranges.is_valid(d)
+    }
+
+    pub fn clamp(&self, d: &[f64; 3]) -> [f64; 3] {
+        self.ranges.clamp(d)
+    }
+
+    /// Save as JSON, atomically.
+    pub fn save(&self, path: &Path) -> Result<()> {
+        write_json_atomic(path, self)
+    }
+
+    /// Read and check a rig file.
+    pub fn load(path: &Path) -> Result<JawRig> {
+        let rig: JawRig = read_json(path, "rig file")?;
+        if rig.format != RIG_FORMAT {
+            return Err(Error::invalid(
+                path,
+                "format",
+                format!("expected {RIG_FORMAT:?}, found {:?}", rig.format),
+            ));
+        }
+        for (field, net, components) in [
+            ("network", &rig.network, NETWORK_COMPONENTS),
+            ("paper.lateral", &rig.paper.lateral, 1),
+            ("paper.protrusion", &rig.paper.protrusion, 1),
+        ] {
+            net.check().map_err(|p| Error::invalid(path, field, p))?;
+            if net.inputs != 6 || net.components != components {
+                return Err(Error::invalid(
+                    path,
+                    field,
+                    format!(
+                        "expected 6 inputs and {components} components, found {} and {}",
+                        net.inputs, net.components
+                    ),
+                ));
+            }
+        }
+        rig.modes
+            .check()
+            .map_err(|p| Error::invalid(path, "modes", p))?;
+        if rig.modes.dims != 6 {
+            return Err(Error::invalid(path, "modes.dims", "must be 6"));
+        }
+        if let Some(k) = rig.gain.iter().position(|g| !g.is_finite() || *g == 0.0) {
+            return Err(Error::invalid(
+                path,
+                format!("gain[{k}]"),
+                "must be a finite, non-zero number",
+            ));
+        }
+        if rig.probes_mm.is_empty() {
+            return Err(Error::invalid(
+                path,
+                "probes_mm",
+                "must list at least one point",
+            ));
+        }
+        if !(rig.coords.radius_mm.is_finite() && rig.coords.radius_mm > 0.0) {
+            return Err(Error::invalid(
+                path,
+                "coords.radius_mm",
+                "must be a positive number",
+            ));
+        }
+        Ok(rig)
+    }
+}
+
+/// Starting directions of the three modes (vector units, orthonormal): the first principal
+/// direction (opening); in the plane of the next two, the one along which the front of the
+/// mesh moves sideways (lateral excursion, by least squares over the training poses), and the
+/// one orthogonal to it (protrusion).
+fn mode_directions(pca: &Pca, vectors: &[Vector6<f64>], moved: &[Vector3<f64>]) -> [Vec<f64>; 3] {
+    let p: Vec<Vector6<f64>> = pca
+        .components
+        .iter()
+        .take(3)
+        .map(|c| Vector6::from(*c))
+        .collect();
+    let mean = Vector6::from(pca.mean);
+    // Regress the front's sideways motion on the scores along p2 and p3.
+    let n = vectors.len().max(1) as f64;
+    let scores: Vec<[f64; 2]> = vectors
+        .iter()
+        .map(|v| [p[1].dot(&(v - mean)), p[2].dot(&(v - mean))])
+        .collect();
+    let mx = moved.iter().map(|m| m.x).sum::<f64>() / n;
+    let mut a = nalgebra::Matrix2::<f64>::zeros();
+    let mut b = nalgebra::Vector2::<f64>::zeros();
+    for (s, m) in scores.iter().zip(moved) {
+        let s = nalgebra::Vector2::new(s[0], s[1]);
+        a += s * s.transpose();
+        b += s * (m.x - mx);
+    }
+    let coef = a
+        .try_inverse()
+        .map_or(nalgebra::Vector2::new(1.0, 0.0), |inv| inv * b);
+    let coef = if coef.norm() > 0.0 {
+        coef.normalize()
+    } else {
+        nalgebra::Vector2::new(1.0, 0.0)
+    };
+    let lateral = p[1] * coef[0] + p[2] * coef[1];
+    let protrusion = p[2] * coef[0] - p[1] * coef[1];
+    [p[0], lateral, protrusion].map(|u| u.as_slice().to_vec())
+}
