@@ -1,4 +1,4 @@
-//! `jawtrack bench energy`: evaluations per second of every energy backend, for performance
+//! `jawtrack bench energy` / `track` (`rig`: bench_rig.rs): evaluations per second of every energy backend, for performance
 //! engineers; one synthetic capture per mesh case, three cameras, half-resolution masks.
 
 use std::path::{Path, PathBuf};
@@ -18,6 +18,9 @@ pub enum Command {
     /// Track synthetic captures and compare with the energy's floor (the minimum of E found
     /// by a long, fine search from the truth), per preset: accuracy, speed, ratio to floor.
     Track(TrackArgs),
+    /// Learn a rig from synthetic TMJ motion and report the paper's figures, learning time and
+    /// IK speed.
+    Rig(super::bench_rig::RigArgs),
 }
 
 #[derive(clap::Args)]
@@ -64,6 +67,7 @@ pub fn run(c: Command) -> anyhow::Result<()> {
     match c {
         Command::Energy(a) => energy(a),
         Command::Track(a) => track(a),
+        Command::Rig(a) => super::bench_rig::rig(a),
     }
 }
 

@@ -81,11 +81,36 @@ pub fn run(a: Args) -> anyhow::Result<()> {
     if let Some(r) = super::track::score_records(&reopened, &tracks, &summary.records)? {
         super::track::print_score(&r);
     }
+
+    println!("\n== 5. learn a jaw rig from the tracked poses (frames with status ok)");
+    let rig_path = out.join("rig.json");
+    let poses = jawtrack::rig::read_jaw_poses(&tracks)?;
+    // The error is measured on the mandible when the capture has one.
+    let metric =
+        jawtrack::rig::MeshMetric::new(reopened.mandible.as_ref().unwrap_or(&reopened.lower));
+    let rig = super::rig::learn_rig(&poses, &metric, &Default::default())?;
+    rig.save(&rig_path)?;
+    let report = super::rig::evaluate_rig(&rig, &poses.poses, &metric, 0, 0, false)?;
+    let rec = &report.reconstruction;
+    println!(
+        "{} poses, learned in {:.2} s; reconstruction error on the mandible (largest vertex distance, mm): rig mean {:.3}, max {:.3}; PCA-3 mean {:.3}; NLPCA-5 mean {:.3}",
+        poses.len(),
+        rig.training.seconds,
+        rec.rig.stats.mean,
+        rec.rig.stats.max,
+        rec.pca[2].stats.mean,
+        rec.nlpca[4].stats.mean
+    );
+    println!(
+        "(a rig learned from {} frames of a short exercise; `jawtrack synth DIR --frames 833 --no-masks` and `jawtrack rig learn` give the full picture)",
+        poses.len()
+    );
+
     println!("\ntracks: {}", tracks.display());
     println!(
         "overlays (mask white, model red at alpha 0.5, BOI green): {}",
         overlays.display()
     );
-    println!("not built yet: the jaw rig (PCA, NLPCA, ranges, IK, animation).");
+    println!("rig: {}", rig_path.display());
     Ok(())
 }

@@ -1,6 +1,7 @@
 //! clap commands: the only place that prints or uses anyhow.
 
 mod bench;
+mod bench_rig;
 mod demo;
 mod energy;
 mod mesh;

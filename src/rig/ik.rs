@@ -1,6 +1,7 @@
 //! Inverse kinematics (the paper's Eq. 10): the valid parameters that bring a mesh point
 //! closest to a target, by local sampling around the current parameters: the 26 neighbours
-//! of the current point at a step that halves whenever none of them is better.
+//! of the current point (projected onto the valid ranges) at a step that halves whenever none
+//! of them is better.
 
 use nalgebra::Vector3;
 use serde::Serialize;
@@ -16,6 +17,8 @@ pub struct IkSettings {
     pub min_step: f64,
     /// Rig evaluations at most.
     pub max_evaluations: usize,
+    /// Stop when the point is this close to the target (mm).
+    pub tolerance_mm: f64,
 }
 
 impl Default for IkSettings {
@@ -24,6 +27,7 @@ impl Default for IkSettings {
             step: 0.05,
             min_step: 1e-5,
             max_evaluations: 3000,
+            tolerance_mm: 1e-3,
         }
     }
 }
@@ -50,7 +54,7 @@ pub fn solve(
     let mut best_e = distance(&best);
     let mut evaluations = 1;
     let mut step = s.step;
-    while step >= s.min_step && evaluations < s.max_evaluations {
+    while step >= s.min_step && evaluations < s.max_evaluations && best_e > s.tolerance_mm {
         let mut moved = false;
         for dx in -1i32..=1 {
             for dy in -1i32..=1 {
@@ -63,11 +67,21 @@ pub fn solve(
                         best[1] + step * dy as f64,
                         best[2] + step * dz as f64,
                     ];
-                    if !rig.is_valid(&trial) {
-                        continue;
-                    }
                     let e = distance(&trial);
                     evaluations += 1;
+                    if e >= best_e {
+                        continue;
+                    }
+                    // A winner outside the valid ranges is projected onto them (the costlier
+                    // test, so only for winners) and kept if it still wins: the ranges can be
+                    // thin bands that a step would otherwise always leave.
+                    let (trial, e) = if rig.is_valid(&trial) {
+                        (trial, e)
+                    } else {
+                        let c = rig.clamp(&trial);
+                        evaluations += 1;
+                        (c, distance(&c))
+                    };
                     if e < best_e {
                         best = trial;
                         best_e = e;

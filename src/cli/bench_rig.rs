@@ -1,0 +1,130 @@
+//! `jawtrack bench rig`: the rig's accuracy and speed goals on synthetic TMJ motion.
+
+use std::path::PathBuf;
+use std::time::Instant;
+
+use anyhow::Context;
+use jawtrack::rig::{JawRig, MeshMetric, RigSettings, read_jaw_poses};
+use jawtrack::synth::{SynthOptions, generate};
+use rand::SeedableRng;
+use serde::Serialize;
+
+#[derive(clap::Args)]
+pub struct RigArgs {
+    /// Poses of synthetic motion (the whole exercise is played once).
+    #[arg(long, default_value_t = 833)]
+    frames: u32,
+    /// Seed of the synthetic subject and of the networks.
+    #[arg(long, default_value_t = 0)]
+    seed: u64,
+    /// Folder with upper.* and lower.* to build the subject from (default: procedural arches).
+    #[arg(long)]
+    meshes: Option<PathBuf>,
+    /// Random rig poses for Fig. 13.
+    #[arg(long, default_value_t = 1000)]
+    samples: usize,
+    /// IK queries to time.
+    #[arg(long, default_value_t = 1000)]
+    ik_queries: usize,
+    /// Write the figures (SVG, JSON) here.
+    #[arg(long)]
+    plots: Option<PathBuf>,
+    /// Print JSON instead of a table.
+    #[arg(long)]
+    json: bool,
+}
+
+#[derive(Serialize)]
+struct RigBench {
+    poses: usize,
+    /// Reading the poses file, jaw poses from upper/lower (Eq. 1-3) and the se(3) log of each.
+    extraction_ms: f64,
+    learn_seconds: f64,
+    ik_ms_per_query: f64,
+    ik_mean_residual_mm: f64,
+    eval: super::rig::EvalReport,
+}
+
+pub fn rig(a: RigArgs) -> anyhow::Result<()> {
+    let dir = tempfile::tempdir().context("creating a temporary folder")?;
+    let capture = dir.path().join("motion");
+    let opts = SynthOptions {
+        frames: a.frames,
+        seed: a.seed,
+        meshes: a.meshes.clone(),
+        no_masks: true,
+        ..Default::default()
+    };
+    generate(&capture, &opts, &|| {}).context("synthesising the motion")?;
+    let (_, metric) = super::rig::load_mesh(&capture.join("meshes/mandible.obj"))?;
+
+    let t = Instant::now();
+    let poses = read_jaw_poses(&capture.join("gt/poses.json"))?;
+    let coords = jawtrack::rig::Coordinates::for_mesh(&metric);
+    let vectors: Vec<_> = poses.poses.iter().map(|p| coords.vector(p)).collect();
+    let extraction_ms = t.elapsed().as_secs_f64() * 1e3;
+    std::hint::black_box(vectors);
+
+    let mut settings = RigSettings::default();
+    settings.network.seed = a.seed;
+    settings.mode.seed = a.seed;
+    settings.modes.seed = a.seed;
+    let rig = JawRig::learn(&poses.poses, &metric, &settings)?;
+    let (ik_ms, ik_residual) = time_ik(&rig, &metric, a.ik_queries, a.seed);
+    let eval = super::rig::evaluate_rig(&rig, &poses.poses, &metric, a.samples, a.seed, true)?;
+    if let Some(p) = &a.plots {
+        jawtrack::rig::plot::write_figures(p, &eval.reconstruction, eval.sampled.as_ref())?;
+    }
+    let report = RigBench {
+        poses: poses.len(),
+        extraction_ms,
+        learn_seconds: rig.training.seconds,
+        ik_ms_per_query: ik_ms,
+        ik_mean_residual_mm: ik_residual,
+        eval,
+    };
+    if a.json {
+        println!("{}", serde_json::to_string_pretty(&report)?);
+        return Ok(());
+    }
+    println!(
+        "synthetic TMJ motion: {} poses (seed {}), mandible with condyles ({} vertices); machine: {} cores",
+        report.poses,
+        a.seed,
+        metric.vertex_count(),
+        std::thread::available_parallelism().map_or(1, |n| n.get())
+    );
+    println!(
+        "relative poses + se(3) for all poses: {:.1} ms; learning: {:.2} s; IK: {:.3} ms a query (mean residual {:.3} mm over {} reachable targets)",
+        report.extraction_ms,
+        report.learn_seconds,
+        report.ik_ms_per_query,
+        report.ik_mean_residual_mm,
+        a.ik_queries
+    );
+    super::rig::print_eval(&report.eval);
+    Ok(())
+}
+
+/// IK queries towards targets the rig can reach (a mesh vertex under a random valid pose),
+/// each from the rest parameters: time per query and mean residual.
+fn time_ik(rig: &JawRig, metric: &MeshMetric, queries: usize, seed: u64) -> (f64, f64) {
+    let mut rng = rand_chacha::ChaCha8Rng::seed_from_u64(seed ^ 0x1c);
+    let point = metric.probes()[0];
+    let targets: Vec<_> = (0..queries)
+        .map(|_| {
+            rig.pose(&rig.ranges.sample_dynamic(&mut rng))
+                .transform_point(&point)
+        })
+        .collect();
+    let t = Instant::now();
+    let residual: f64 = targets
+        .iter()
+        .map(|target| {
+            jawtrack::rig::ik::solve(rig, &point, target, &[0.0; 3], &Default::default())
+                .residual_mm
+        })
+        .sum();
+    let n = queries.max(1) as f64;
+    (t.elapsed().as_secs_f64() * 1e3 / n, residual / n)
+}

@@ -1,0 +1,196 @@
+//! The jaw rig end to end on synthetic TMJ motion (ground truth, no masks): learning,
+//! reconstruction with margins, the rig file, ranges, IK, and errors on bad input.
+
+use std::path::Path;
+use std::sync::OnceLock;
+
+use jawtrack::capture::{BoiSource, Mesh};
+use jawtrack::rig::eval::{reconstruction, sampled};
+use jawtrack::rig::{JawPoses, JawRig, MeshMetric, read_jaw_poses, write_jaw_poses};
+use jawtrack::synth::{SynthOptions, generate};
+
+struct Fixture {
+    _dir: tempfile::TempDir,
+    poses: JawPoses,
+    metric: MeshMetric,
+    rig: JawRig,
+}
+
+/// 170 poses: the whole exercise once (opening, both excursions, protrusion, combinations).
+fn fixture() -> &'static Fixture {
+    static F: OnceLock<Fixture> = OnceLock::new();
+    F.get_or_init(|| {
+        let dir = tempfile::tempdir().unwrap();
+        let out = dir.path().join("m");
+        let opts = SynthOptions {
+            frames: 170,
+            seed: 3,
+            no_masks: true,
+            ..Default::default()
+        };
+        generate(&out, &opts, &|| {}).unwrap();
+        let poses = read_jaw_poses(&out.join("gt/poses.json")).unwrap();
+        let mandible = Mesh::load(&out.join("meshes/mandible.obj"), BoiSource::None).unwrap();
+        let metric = MeshMetric::new(&mandible);
+        let rig = JawRig::learn(&poses.poses, &metric, &Default::default()).unwrap();
+        Fixture {
+            _dir: dir,
+            poses,
+            metric,
+            rig,
+        }
+    })
+}
+
+#[test]
+fn the_rig_reconstructs_synthetic_motion() {
+    let f = fixture();
+    let rec = reconstruction(&f.rig, &f.poses.poses, &f.metric, None);
+    // Measured on this set: rig ≈ 0.2 mm mean, NLPCA-5 ≈ 0.03 mm; PCA-1 several mm.
+    assert!(rec.rig.stats.mean < 0.5, "rig {:?}", rec.rig.stats);
+    assert!(
+        rec.rig_clamped.stats.max < 2.0,
+        "clamped {:?}",
+        rec.rig_clamped.stats
+    );
+    assert!(
+        rec.nlpca[4].stats.mean < 0.2,
+        "NLPCA-5 {:?}",
+        rec.nlpca[4].stats
+    );
+    assert!(
+        rec.pca[0].stats.mean > 5.0 * rec.rig.stats.mean,
+        "PCA-1 {:?}",
+        rec.pca[0].stats
+    );
+    assert!(rec.valid_share > 0.8, "valid share {}", rec.valid_share);
+    // Opening is the first parameter: opening the mouth moves the front of the mandible down.
+    let front = f
+        .metric
+        .probes()
+        .iter()
+        .copied()
+        .max_by(|a, b| a.z.total_cmp(&b.z))
+        .unwrap();
+    let [lo, hi] = f.rig.ranges.d1_range();
+    let closed = f
+        .rig
+        .pose(&f.rig.clamp(&[lo, 0.0, 0.0]))
+        .transform_point(&front);
+    let open = f
+        .rig
+        .pose(&f.rig.clamp(&[hi, 0.0, 0.0]))
+        .transform_point(&front);
+    assert!(
+        closed.y - open.y > 30.0,
+        "opening moves the chin by {} mm",
+        closed.y - open.y
+    );
+}
+
+#[test]
+fn dynamic_ranges_stay_closer_to_the_captured_poses() {
+    let f = fixture();
+    let s = sampled(&f.rig, &f.poses.poses, &f.metric, 200, 1);
+    assert!(
+        s.dynamic_ranges.stats.mean < s.static_ranges.stats.mean,
+        "dynamic {:?} vs fixed {:?}",
+        s.dynamic_ranges.stats,
+        s.static_ranges.stats
+    );
+}
+
+#[test]
+fn the_rig_file_round_trips_and_is_checked() {
+    let f = fixture();
+    let dir = tempfile::tempdir().unwrap();
+    let path = dir.path().join("rig.json");
+    f.rig.save(&path).unwrap();
+    let back = JawRig::load(&path).unwrap();
+    let d = [0.1, -0.03, 0.02];
+    let (r, t) = back.pose(&d).distance_to(&f.rig.pose(&d));
+    assert!(r < 1e-12 && t < 1e-9);
+    // A damaged file names the field.
+    let mut json: serde_json::Value =
+        serde_json::from_str(&std::fs::read_to_string(&path).unwrap()).unwrap();
+    json["format"] = "jawtrack-rig/9".into();
+    std::fs::write(&path, json.to_string()).unwrap();
+    let e = JawRig::load(&path).unwrap_err().to_string();
+    assert!(
+        e.contains("rig.json") && e.contains("`format`") && e.contains("jawtrack-rig/1"),
+        "{e}"
+    );
+    json["format"] = "jawtrack-rig/1".into();
+    json["network"]["weights"] = serde_json::json!([1.0, 2.0]);
+    std::fs::write(&path, json.to_string()).unwrap();
+    let e = JawRig::load(&path).unwrap_err().to_string();
+    assert!(e.contains("`network`") && e.contains("weights"), "{e}");
+}
+
+#[test]
+fn ik_reaches_a_reachable_target_quickly() {
+    let f = fixture();
+    let point = f.metric.probes()[0];
+    let goal = f.rig.clamp(&[0.15, 0.03, 0.0]);
+    let target = f.rig.pose(&goal).transform_point(&point);
+    let r = jawtrack::rig::ik::solve(&f.rig, &point, &target, &[0.0; 3], &Default::default());
+    assert!(r.residual_mm < 0.05, "{r:?}");
+    assert!(f.rig.is_valid(&r.params));
+}
+
+#[test]
+fn jaw_pose_files_round_trip_and_bad_ones_are_named() {
+    let f = fixture();
+    let dir = tempfile::tempdir().unwrap();
+    let path = dir.path().join("jaw.json");
+    write_jaw_poses(&path, &f.poses.frames[..5], &f.poses.poses[..5]).unwrap();
+    let back = read_jaw_poses(&path).unwrap();
+    assert_eq!(back.frames, f.poses.frames[..5]);
+    let (r, t) = back.poses[3].distance_to(&f.poses.poses[3]);
+    assert!(r < 1e-9 && t < 1e-9);
+
+    let write = |name: &str, text: &str| {
+        let p = dir.path().join(name);
+        std::fs::write(&p, text).unwrap();
+        read_jaw_poses(&p).unwrap_err().to_string()
+    };
+    let e = write("a.json", r#"{"format": "jawtrack-jaw/7", "poses": []}"#);
+    assert!(
+        e.contains("a.json") && e.contains("`format`") && e.contains("jawtrack-jaw/1"),
+        "{e}"
+    );
+    let e = write(
+        "b.json",
+        r#"{"format": "jawtrack-jaw/1", "poses": [{"frame": 0, "rotation": [[1,0,0],[0,1,0],[0,0,2]], "translation": [0,0,0]}]}"#,
+    );
+    assert!(
+        e.contains("poses[0].rotation") && e.contains("rotation matrix"),
+        "{e}"
+    );
+    let pose = r#"{"rotation": [[1,0,0],[0,1,0],[0,0,1]], "translation": [0,0,0]}"#;
+    let e = write(
+        "c.json",
+        &format!(
+            r#"{{"frames": [{{"frame": 0, "upper": {pose}, "lower": {pose}, "status": "lost"}}]}}"#
+        ),
+    );
+    assert!(
+        e.contains("no usable jaw poses") && e.contains("1 frames skipped"),
+        "{e}"
+    );
+    let e = write("d.json", r#"{"frames": [{"frame": 0, "upper": 3}]}"#);
+    assert!(e.contains("d.json") && e.contains("frames[0].upper"), "{e}");
+    assert!(
+        read_jaw_poses(Path::new("/nonexistent/jaw.json"))
+            .unwrap_err()
+            .to_string()
+            .contains("not found")
+    );
+}
+
+#[test]
+fn too_few_poses_is_an_error() {
+    let f = fixture();
+    let e = JawRig::learn(&f.poses.poses[..5], &f.metric, &Default::default()).unwrap_err();
+    assert!(e.to_string().contains("at least 12"), "{e}");
+}
