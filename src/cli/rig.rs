@@ -403,6 +403,7 @@ pub(crate) fn print_eval(r: &EvalReport) {
     };
     let rec = &r.reconstruction;
     rec.pca.iter().for_each(row);
+    row(&rec.pca3_plain);
     rec.nlpca.iter().for_each(row);
     row(&rec.rig);
     row(&rec.rig_clamped);

@@ -8,9 +8,11 @@ use rand_chacha::ChaCha8Rng;
 use rayon::prelude::*;
 use serde::Serialize;
 
+use super::coords::Coordinates;
 use super::metric::MeshMetric;
 use super::model::JawRig;
 use super::nlpca::Nlpca;
+use super::pca::Pca;
 use crate::geometry::Pose;
 
 /// Summary of a set of errors (mm).
@@ -67,6 +69,9 @@ impl Series {
 pub struct Reconstruction {
     /// PCA with 1..6 components.
     pub pca: Vec<Series>,
+    /// PCA with 3 components on the paper's plain se(3) vectors (log of the pose in the
+    /// scan's frame, radians and millimetres mixed), for comparison with [`Coordinates`].
+    pub pca3_plain: Series,
     /// NLPCA with 1..5 components (the rig's network), and 6 when a six-component network
     /// is given.
     pub nlpca: Vec<Series>,
@@ -104,6 +109,17 @@ pub fn reconstruction(
             )
         })
         .collect();
+    let plain = Coordinates {
+        centre_mm: [0.0; 3],
+        radius_mm: 1.0,
+    };
+    let plain_pca = Pca::fit(&poses.iter().map(|p| plain.vector(p)).collect::<Vec<_>>());
+    let pca3_plain = Series::new(
+        "PCA-3, plain se(3)",
+        errors(poses, metric, |p| {
+            plain.pose(&plain_pca.reconstruct(&plain.vector(p), 3))
+        }),
+    );
     let by_network = |net: &Nlpca, k: usize| {
         Series::new(
             format!("NLPCA-{k}"),
@@ -133,6 +149,7 @@ pub fn reconstruction(
     };
     Reconstruction {
         pca,
+        pca3_plain,
         nlpca,
         rig: Series::new("rig", rebuilt(false)),
         rig_clamped: Series::new("rig, clamped", rebuilt(true)),

@@ -54,8 +54,8 @@ impl Default for RigSettings {
     fn default() -> Self {
         RigSettings {
             network: NlpcaSettings {
-                hidden: 10,
-                max_iterations: 3000,
+                hidden: 16,
+                max_iterations: 6000,
                 ..Default::default()
             },
             mode: NlpcaSettings {

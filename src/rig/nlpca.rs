@@ -331,25 +331,17 @@ impl Nlpca {
             .iter()
             .map(|u| 1.0 / u.max(BALANCE_FLOOR))
             .collect();
-        // Two starts, the better kept: from PCA (each sub-network starts as PCA with as many
-        // components, so NLPCA is never worse than PCA, but it is a saddle that training may
-        // not leave) and from random weights (which can find curvature PCA cannot).
+        // The start is PCA: hidden units 1..k carry the principal components through the
+        // near-linear middle of tanh, so every sub-network starts as PCA with as many
+        // components, and L-BFGS only goes down from there: NLPCA is never worse than PCA.
+        // The other hidden units start as random curved features of their inputs (large input
+        // weights, zero output weights): the output is still PCA's, but the gradient sees at
+        // once how those features would explain what PCA leaves. (With those units near zero
+        // instead, the start is a saddle that training hardly leaves.)
         let f = |w: &[f64]| error_and_gradient(shape, w, &data, &balance, settings.weight_decay);
-        let starts = [
-            initial_weights(shape, settings.seed, Some(&basis)),
-            initial_weights(shape, settings.seed, None),
-        ];
-        let mut iterations = 0;
-        let mut found: Option<(Vec<f64>, f64)> = None;
-        for start in starts {
-            let (w, e, its) =
-                super::lbfgs::minimise(&f, start, settings.max_iterations, settings.memory);
-            iterations += its;
-            if found.as_ref().is_none_or(|(_, best)| e < *best) {
-                found = Some((w, e));
-            }
-        }
-        let (weights, best) = found.expect("two starts were tried");
+        let start = initial_weights(shape, settings.seed, Some(&basis));
+        let (weights, best, iterations) =
+            super::lbfgs::minimise(&f, start, settings.max_iterations, settings.memory);
         let net = Nlpca {
             inputs: d,
             hidden: settings.hidden,
@@ -409,11 +401,13 @@ fn pca_basis(data: &[f64], d: usize) -> (Vec<Vec<f64>>, Vec<f64>) {
 
 /// Initial weights from the seed. With a PCA basis (and h ≥ k), sub-network i starts as PCA
 /// with i components: hidden unit j < k carries principal component j through the near-linear
-/// middle of tanh (gain 0.1), and the other weights are small random numbers that break the
-/// symmetry. Without one: Glorot-uniform weights, zero biases.
+/// middle of tanh (gain 0.1); the other hidden units get large random input weights (curved
+/// features) and zero output weights; the remaining weights are small random numbers that
+/// break the symmetry. Without a basis: Glorot-uniform weights, zero biases.
 fn initial_weights(s: Shape, seed: u64, basis: Option<&[Vec<f64>]>) -> Vec<f64> {
     const GAIN: f64 = 0.1;
     const SMALL: f64 = 0.01;
+    const CURVED: f64 = 10.0;
     let mut rng = ChaCha8Rng::seed_from_u64(seed);
     let o = s.offsets();
     let fans = [
@@ -446,6 +440,25 @@ fn initial_weights(s: Shape, seed: u64, basis: Option<&[Vec<f64>]>) -> Vec<f64> 
             }
             w[o[2] + j * s.h + j] = 1.0 / GAIN; // W2: component j from hidden unit j
             w[o[4] + j * s.k + j] = GAIN; // W3: hidden unit j from component j
+        }
+        {
+            // Hidden units k..h: inputs of order one (the data's scale is 0.1), so tanh bends;
+            // their outputs start at zero so the network still computes PCA.
+            let (d, h, k) = (s.d, s.h, s.k);
+            for j in k..h {
+                for q in 0..d {
+                    w[o[0] + j * d + q] = rng.random_range(-CURVED..CURVED);
+                }
+                w[o[1] + j] = rng.random_range(-1.0..1.0);
+                for m in 0..k {
+                    w[o[2] + m * h + j] = 0.0;
+                    w[o[4] + j * k + m] = rng.random_range(-CURVED..CURVED);
+                }
+                w[o[5] + j] = rng.random_range(-1.0..1.0);
+                for q in 0..d {
+                    w[o[6] + q * h + j] = 0.0;
+                }
+            }
         }
     }
     w
