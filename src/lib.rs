@@ -6,9 +6,11 @@
 
 pub mod capture;
 pub mod energy;
+pub mod envelope;
 pub mod error;
 pub mod geometry;
 pub mod rig;
+pub mod stats;
 pub mod synth;
 pub mod track;
 

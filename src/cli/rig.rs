@@ -258,6 +258,7 @@ fn learn(a: LearnArgs) -> anyhow::Result<()> {
     settings.alpha = a.alpha;
     settings.network.seed = a.seed;
     settings.mode.seed = a.seed;
+    settings.modes.seed = a.seed;
     if !(settings.alpha.is_finite() && settings.alpha > 0.0) {
         bail!(
             "--alpha must be a positive number, found {}",

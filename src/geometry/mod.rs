@@ -1,6 +1,7 @@
 //! Geometry: SE(3)/se(3), the OpenCV camera, triangulation and rigid fitting.
 
 mod camera;
+pub mod least_squares;
 #[cfg(test)]
 pub(crate) mod lie_suite;
 mod rigid_fit;

@@ -15,36 +15,7 @@ use super::nlpca::Nlpca;
 use super::pca::Pca;
 use crate::geometry::Pose;
 
-/// Summary of a set of errors (mm).
-#[derive(Debug, Clone, Copy, Serialize, PartialEq)]
-pub struct Stats {
-    pub mean: f64,
-    pub median: f64,
-    pub p95: f64,
-    pub max: f64,
-}
-
-impl Stats {
-    pub fn of(values: &[f64]) -> Stats {
-        if values.is_empty() {
-            return Stats {
-                mean: f64::NAN,
-                median: f64::NAN,
-                p95: f64::NAN,
-                max: f64::NAN,
-            };
-        }
-        let mut v = values.to_vec();
-        v.sort_by(f64::total_cmp);
-        let q = |p: f64| v[((v.len() - 1) as f64 * p).round() as usize];
-        Stats {
-            mean: v.iter().sum::<f64>() / v.len() as f64,
-            median: q(0.5),
-            p95: q(0.95),
-            max: v[v.len() - 1],
-        }
-    }
-}
+pub use crate::stats::Stats;
 
 /// One named series of per-pose errors (mm).
 #[derive(Debug, Clone, Serialize)]

@@ -15,7 +15,7 @@
 
 use std::path::Path;
 
-use nalgebra::{Matrix3, Vector3, Vector6};
+use nalgebra::{Vector3, Vector6};
 use serde::{Deserialize, Serialize};
 
 use super::additive::{self, AdditiveModes, AdditiveReport, AdditiveSettings};
@@ -28,6 +28,7 @@ use crate::capture::json::read_json;
 use crate::capture::write_json_atomic;
 use crate::error::{Error, Result};
 use crate::geometry::Pose;
+use crate::geometry::least_squares::levenberg_marquardt;
 
 pub const RIG_FORMAT: &str = "jawtrack-rig/1";
 
@@ -318,56 +319,20 @@ impl JawRig {
                 })
                 .collect()
         };
-        let cost = |r: &[f64]| r.iter().map(|v| v * v).sum::<f64>();
         let v = self.coords.vector(pose);
-        let mut d = self
+        let start = self
             .training_params
             .iter()
             .map(|d| (d, (self.vector(d) - v).norm_squared()))
             .min_by(|a, b| a.1.total_cmp(&b.1))
             .map_or([0.0; 3], |(d, _)| *d);
-        let mut r = residual(&d);
-        let mut lambda = 1e-3;
-        for _ in 0..self.settings.encode_steps {
-            let h = 1e-6;
-            let cols: Vec<Vec<f64>> = (0..3)
-                .map(|k| {
-                    let (mut a, mut b) = (d, d);
-                    a[k] += h;
-                    b[k] -= h;
-                    residual(&a)
-                        .iter()
-                        .zip(residual(&b))
-                        .map(|(p, q)| (p - q) / (2.0 * h))
-                        .collect()
-                })
-                .collect();
-            let jtj =
-                Matrix3::from_fn(|i, j| cols[i].iter().zip(&cols[j]).map(|(a, b)| a * b).sum());
-            let jtr = Vector3::from_fn(|i, _| cols[i].iter().zip(&r).map(|(a, b)| a * b).sum());
-            let mut improved = false;
-            for _ in 0..6 {
-                let damped = jtj + Matrix3::from_diagonal(&jtj.diagonal()) * lambda;
-                let Some(step) = damped.cholesky().map(|c| c.solve(&-jtr)) else {
-                    lambda *= 10.0;
-                    continue;
-                };
-                let trial = [d[0] + step[0], d[1] + step[1], d[2] + step[2]];
-                let rt = residual(&trial);
-                if cost(&rt) < cost(&r) {
-                    d = trial;
-                    r = rt;
-                    lambda = (lambda * 0.3).max(1e-9);
-                    improved = true;
-                    break;
-                }
-                lambda *= 10.0;
-            }
-            if !improved {
-                break;
-            }
-        }
-        d
+        let d = levenberg_marquardt(
+            |d| residual(&[d[0], d[1], d[2]]),
+            &start,
+            self.settings.encode_steps,
+            1e-6,
+        );
+        [d[0], d[1], d[2]]
     }
 
     pub fn is_valid(&self, d: &[f64; 3]) -> bool {

@@ -102,23 +102,9 @@ impl AlphaShape {
             .filter(|(n, _)| *n == 1)
             .map(|(_, e)| e)
             .collect();
-        // A reproducible file: edges in a fixed order.
-        edges.sort_by(|a, b| {
-            a.iter()
-                .flatten()
-                .zip(b.iter().flatten())
-                .map(|(p, q)| p.total_cmp(q))
-                .find(|o| o.is_ne())
-                .unwrap_or(std::cmp::Ordering::Equal)
-        });
-        paths.sort_by(|a, b| {
-            a.iter()
-                .flatten()
-                .zip(b.iter().flatten())
-                .map(|(p, q)| p.total_cmp(q))
-                .find(|o| o.is_ne())
-                .unwrap_or(std::cmp::Ordering::Equal)
-        });
+        // A reproducible file: segments in a fixed order.
+        sort_segments(&mut edges);
+        sort_segments(&mut paths);
         Ok(AlphaShape {
             alpha,
             edges,
@@ -172,6 +158,17 @@ impl AlphaShape {
             .iter()
             .any(|[lo, hi]| (*lo..=*hi).contains(&p[1]))
     }
+}
+
+fn sort_segments(segments: &mut [[[f64; 2]; 2]]) {
+    segments.sort_by(|a, b| {
+        a.iter()
+            .flatten()
+            .zip(b.iter().flatten())
+            .map(|(p, q)| p.total_cmp(q))
+            .find(|o| o.is_ne())
+            .unwrap_or(std::cmp::Ordering::Equal)
+    });
 }
 
 /// Half-width of the band around one-dimensional parts, as a share of alpha.

@@ -6,29 +6,7 @@ use crate::capture::json::FrameRecordJson;
 use crate::capture::{Arch, ArchPoses, Capture, Mesh};
 use crate::geometry::Pose;
 
-/// Median, 95th percentile (nearest rank) and maximum.
-#[derive(Debug, Clone, Copy, Default, serde::Serialize)]
-pub struct Stats {
-    pub median: f64,
-    pub p95: f64,
-    pub max: f64,
-}
-
-impl Stats {
-    pub fn of(values: &[f64]) -> Stats {
-        if values.is_empty() {
-            return Stats::default();
-        }
-        let mut v = values.to_vec();
-        v.sort_by(f64::total_cmp);
-        let rank = |q: f64| v[((q * v.len() as f64).ceil() as usize).clamp(1, v.len()) - 1];
-        Stats {
-            median: rank(0.5),
-            p95: rank(0.95),
-            max: v[v.len() - 1],
-        }
-    }
-}
+pub use crate::stats::Stats;
 
 #[derive(Debug, Clone, serde::Serialize)]
 pub struct PoseErrors {

@@ -1,0 +1,29 @@
+//! The empirical jaw rig (Zoss et al., *An Empirical Rig for Jaw Animation*, 2018): the jaw
+//! frame, traditional rigs as baselines, Posselt's envelope, the RBF manifold map and the
+//! unit-cube parameterisation.
+
+pub mod frame;
+pub mod traditional;
+
+pub use frame::JawFrame;
+pub use traditional::{Dofs, TraditionalRig};
+
+/// A [`Pose`](crate::geometry::Pose) in files: `{"rotation": rows, "translation"}`.
+pub(crate) mod pose_serde {
+    use serde::{Deserialize, Deserializer, Serialize, Serializer};
+
+    use crate::capture::json::PoseJson;
+    use crate::geometry::Pose;
+
+    pub fn serialize<S: Serializer>(p: &Pose, s: S) -> Result<S::Ok, S::Error> {
+        PoseJson::from(p).serialize(s)
+    }
+
+    pub fn deserialize<'de, D: Deserializer<'de>>(d: D) -> Result<Pose, D::Error> {
+        let pj = PoseJson::deserialize(d)?;
+        let rotation =
+            Pose::rotation_from_rows(&pj.rotation, crate::capture::json::ROTATION_TOLERANCE)
+                .ok_or_else(|| serde::de::Error::custom("rotation: not a rotation matrix"))?;
+        Ok(Pose::new(rotation, nalgebra::Vector3::from(pj.translation)))
+    }
+}
