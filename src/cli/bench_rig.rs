@@ -43,6 +43,8 @@ struct RigBench {
     ik_ms_per_query: f64,
     ik_mean_residual_mm: f64,
     eval: super::rig::EvalReport,
+    /// Every rig on the same poses (`rig compare`).
+    compare: Vec<jawtrack::envelope::compare::Row>,
 }
 
 pub fn rig(a: RigArgs) -> anyhow::Result<()> {
@@ -75,6 +77,9 @@ pub fn rig(a: RigArgs) -> anyhow::Result<()> {
     if let Some(p) = &a.plots {
         jawtrack::rig::plot::write_figures(p, &eval.reconstruction, eval.sampled.as_ref())?;
     }
+    let (mandible, _) = super::rig::load_mesh(&capture.join("meshes/mandible.obj"))?;
+    let frame = jawtrack::envelope::JawFrame::from_mesh(&mandible, None, None)?;
+    let compare = jawtrack::envelope::compare::compare(&poses.poses, &frame, &metric)?;
     let report = RigBench {
         poses: poses.len(),
         extraction_ms,
@@ -82,6 +87,7 @@ pub fn rig(a: RigArgs) -> anyhow::Result<()> {
         ik_ms_per_query: ik_ms,
         ik_mean_residual_mm: ik_residual,
         eval,
+        compare,
     };
     if a.json {
         println!("{}", serde_json::to_string_pretty(&report)?);
@@ -103,6 +109,8 @@ pub fn rig(a: RigArgs) -> anyhow::Result<()> {
         a.ik_queries
     );
     super::rig::print_eval(&report.eval);
+    println!();
+    super::rig::print_compare(report.poses, metric.vertex_count(), &report.compare);
     Ok(())
 }
 

@@ -4,6 +4,7 @@ mod bench;
 mod bench_rig;
 mod demo;
 mod energy;
+mod envelope;
 mod mesh;
 mod rig;
 mod score;
@@ -40,6 +41,9 @@ enum Command {
     /// Learn the three-parameter jaw rig from jaw poses, and use it.
     #[command(subcommand)]
     Rig(rig::Command),
+    /// The empirical jaw rig on Posselt's envelope (Zoss et al. 2018).
+    #[command(subcommand)]
+    Envelope(envelope::Command),
     /// Mesh tools.
     #[command(subcommand)]
     Mesh(mesh::Command),
@@ -58,6 +62,7 @@ pub fn main() -> ExitCode {
         Command::Score(a) => score::run(a),
         Command::Energy(a) => energy::run(a),
         Command::Rig(c) => rig::run(c),
+        Command::Envelope(c) => envelope::run(c),
         Command::Mesh(c) => mesh::run(c),
         Command::Bench(c) => bench::run(c),
     };

@@ -35,6 +35,25 @@ pub enum Command {
     Animate(AnimateArgs),
     /// Random valid rig poses (the d1-dependent ranges, or the fixed ones).
     Sample(SampleArgs),
+    /// Every rig on the same poses: traditional 1/3/5-DOF, PCA-3, the NLPCA rig, the envelope
+    /// rig.
+    Compare(CompareArgs),
+}
+
+#[derive(clap::Args)]
+pub struct CompareArgs {
+    pub input: PathBuf,
+    /// The mandible mesh (lower frame): jaw frame landmarks and the error metric.
+    #[arg(long)]
+    pub mesh: PathBuf,
+    /// Vertex indices of the left and right condyles (default: found on the mesh).
+    #[arg(long, value_delimiter = ',', num_args = 2)]
+    pub condyles: Option<Vec<usize>>,
+    /// Vertex index of the reference point (default: found).
+    #[arg(long)]
+    pub reference: Option<usize>,
+    #[arg(long)]
+    pub json: bool,
 }
 
 #[derive(clap::Args)]
@@ -127,7 +146,7 @@ pub struct SampleArgs {
     pub out: PathBuf,
 }
 
-fn parse_vec3(s: &str) -> Result<[f64; 3], String> {
+pub(crate) fn parse_vec3(s: &str) -> Result<[f64; 3], String> {
     let v: Vec<f64> = s
         .split(',')
         .map(|p| p.trim().parse::<f64>().map_err(|e| format!("{p:?}: {e}")))
@@ -209,6 +228,7 @@ pub fn run(c: Command) -> anyhow::Result<()> {
         Command::Ik(a) => ik(a),
         Command::Animate(a) => animate(a),
         Command::Sample(a) => sample(a),
+        Command::Compare(a) => compare(a),
     }
 }
 
@@ -686,4 +706,43 @@ fn sample(a: SampleArgs) -> anyhow::Result<()> {
         side.display()
     );
     Ok(())
+}
+
+fn compare(a: CompareArgs) -> anyhow::Result<()> {
+    let poses = read_jaw_poses(&a.input)?;
+    let (mesh, metric) = load_mesh(&a.mesh)?;
+    let frame = super::envelope::frame_of(&a.mesh, &mesh, a.condyles.as_deref(), a.reference)?;
+    let rows = jawtrack::envelope::compare::compare(&poses.poses, &frame, &metric)?;
+    if a.json {
+        println!("{}", serde_json::to_string_pretty(&rows)?);
+        return Ok(());
+    }
+    print_compare(poses.len(), metric.vertex_count(), &rows);
+    Ok(())
+}
+
+pub(crate) fn print_compare(
+    poses: usize,
+    vertices: usize,
+    rows: &[jawtrack::envelope::compare::Row],
+) {
+    println!(
+        "{poses} poses; errors on a mesh of {vertices} vertices (mm): largest vertex distance per pose, and the front-weighted mean distance"
+    );
+    println!(
+        "rig                           params   max: mean      p95      max   front-weighted: mean      max   learn (s)"
+    );
+    for r in rows {
+        println!(
+            "{:<30} {:>5} {:>10.3} {:>8.3} {:>8.3} {:>22.3} {:>8.3} {:>11.2}",
+            r.name,
+            r.parameters,
+            r.max_vertex_mm.mean,
+            r.max_vertex_mm.p95,
+            r.max_vertex_mm.max,
+            r.front_weighted_mm.mean,
+            r.front_weighted_mm.max,
+            r.learn_seconds
+        );
+    }
 }

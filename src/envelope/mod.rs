@@ -2,10 +2,15 @@
 //! frame, traditional rigs as baselines, Posselt's envelope, the RBF manifold map and the
 //! unit-cube parameterisation.
 
+pub mod compare;
 pub mod frame;
+pub mod model;
+pub mod rbf;
+pub mod shield;
 pub mod traditional;
 
 pub use frame::JawFrame;
+pub use model::{EnvelopeError, EnvelopeRig};
 pub use traditional::{Dofs, TraditionalRig};
 
 /// A [`Pose`](crate::geometry::Pose) in files: `{"rotation": rows, "translation"}`.

@@ -81,6 +81,25 @@ impl MeshMetric {
         &self.probes
     }
 
+    pub fn points(&self) -> &[Vector3<f64>] {
+        &self.points
+    }
+
+    /// The mean vertex distance (mm) between the mesh placed by `a` and by `b`, each vertex
+    /// weighted (`weights` in the order of [`Self::points`]).
+    pub fn weighted_mean_distance(&self, a: &Pose, b: &Pose, weights: &[f64]) -> f64 {
+        let d = b.inverse().compose(a);
+        let m = d.rotation.matrix() - nalgebra::Matrix3::identity();
+        let (sum, total) = self
+            .points
+            .iter()
+            .zip(weights)
+            .fold((0.0, 0.0), |(s, t), (p, w)| {
+                (s + w * (m * p + d.translation).norm(), t + w)
+            });
+        if total > 0.0 { sum / total } else { 0.0 }
+    }
+
     pub fn vertex_count(&self) -> usize {
         self.points.len()
     }

@@ -18,7 +18,7 @@ fn draw_error(path: &Path, e: impl std::fmt::Display) -> Error {
 }
 
 /// One SVG with a histogram panel per series, side by side, on a shared error axis.
-fn histograms(path: &Path, title: &str, series: &[&Series]) -> Result<()> {
+pub fn histograms(path: &Path, title: &str, series: &[&Series]) -> Result<()> {
     let max = series
         .iter()
         .flat_map(|s| s.errors_mm.iter().copied())
