@@ -64,14 +64,11 @@ impl Rbf {
         let centres: Vec<Vector3<f64>> = self.centres.iter().map(|c| Vector3::from(*c)).collect();
         let mut f = vec![0.0; centres.len()];
         Self::features(&centres, &self.sigmas, p, &mut f);
-        let mut out = self.affine[3];
-        for k in 0..6 {
-            out[k] += self.affine[0][k] * p.x + self.affine[1][k] * p.y + self.affine[2][k] * p.z;
-        }
+        let a = &self.affine;
+        let mut out: [f64; 6] =
+            std::array::from_fn(|k| a[3][k] + a[0][k] * p.x + a[1][k] * p.y + a[2][k] * p.z);
         for (w, fi) in self.weights.iter().zip(&f) {
-            for k in 0..6 {
-                out[k] += w[k] * fi;
-            }
+            out.iter_mut().zip(w).for_each(|(o, wk)| *o += wk * fi);
         }
         out
     }
@@ -139,7 +136,7 @@ impl Rbf {
                     .filter(|&d| d > 0.0)
                     .collect();
                 d.sort_by(f64::total_cmp);
-                let k = d.len().min(SPACING_NEIGHBOURS).max(1);
+                let k = d.len().clamp(1, SPACING_NEIGHBOURS);
                 (d.iter().take(k).sum::<f64>() / k as f64).max(1e-3)
             })
             .collect();

@@ -2,9 +2,9 @@
 //! in the jaw frame (x to the subject's left, y up, z forward).
 //!
 //! The envelope is the volume the reference point's trajectory spans, described by its
-//! extents: s_y runs from the top of the envelope (teeth closed, 0) to its bottom (wide open,
-//! 1) through horizontal slices; in each slice s_x runs from the left limit (0) to the right
-//! (1); at (s_y, s_x), s_z runs from the posterior limit (0) to the anterior one (1). The
+//! extents: s_y runs from the top of the envelope (teeth closed, 0) to its bottom (wide
+//! open, 1) through horizontal slices; in each slice s_x runs from the left limit (0) to the
+//! right (1); at (s_y, s_x), s_z runs from the posterior limit (0) to the anterior one. The
 //! limits are tabulated on a grid over (s_y, s_x) from the captured points (the extreme points
 //! within each cell's neighbourhood; empty cells filled from their neighbours) and
 //! interpolated bilinearly, so the map from the cube to the envelope and back is exact and
