@@ -45,6 +45,16 @@ struct RigBench {
     eval: super::rig::EvalReport,
     /// Every rig on the same poses (`rig compare`).
     compare: Vec<jawtrack::envelope::compare::Row>,
+    /// The envelope rig adapted to a second subject (another joint) from five of its poses,
+    /// scored over all of its motion.
+    adaptation: Vec<AdaptRow>,
+}
+
+#[derive(Serialize)]
+struct AdaptRow {
+    name: &'static str,
+    max_vertex_mm: jawtrack::stats::Stats,
+    front_weighted_mm: jawtrack::stats::Stats,
 }
 
 pub fn rig(a: RigArgs) -> anyhow::Result<()> {
@@ -80,6 +90,7 @@ pub fn rig(a: RigArgs) -> anyhow::Result<()> {
     let (mandible, _) = super::rig::load_mesh(&capture.join("meshes/mandible.obj"))?;
     let frame = jawtrack::envelope::JawFrame::from_mesh(&mandible, None, None)?;
     let compare = jawtrack::envelope::compare::compare(&poses.poses, &frame, &metric)?;
+    let adaptation = adapt_to_variant(&poses.poses, &frame, &metric, &a, dir.path())?;
     let report = RigBench {
         poses: poses.len(),
         extraction_ms,
@@ -88,6 +99,7 @@ pub fn rig(a: RigArgs) -> anyhow::Result<()> {
         ik_mean_residual_mm: ik_residual,
         eval,
         compare,
+        adaptation,
     };
     if a.json {
         println!("{}", serde_json::to_string_pretty(&report)?);
@@ -111,6 +123,24 @@ pub fn rig(a: RigArgs) -> anyhow::Result<()> {
     super::rig::print_eval(&report.eval);
     println!();
     super::rig::print_compare(report.poses, metric.vertex_count(), &report.compare);
+    println!();
+    println!(
+        "adaptation to a second subject (`synth --joint variant`, same teeth), from its five extremal poses; error over its whole motion ({} poses):",
+        a.frames
+    );
+    println!(
+        "rig                                   max: mean      p95      max   front-weighted: mean"
+    );
+    for r in &report.adaptation {
+        println!(
+            "{:<36} {:>10.3} {:>8.3} {:>8.3} {:>22.3}",
+            r.name,
+            r.max_vertex_mm.mean,
+            r.max_vertex_mm.p95,
+            r.max_vertex_mm.max,
+            r.front_weighted_mm.mean
+        );
+    }
     Ok(())
 }
 
@@ -135,4 +165,67 @@ fn time_ik(rig: &JawRig, metric: &MeshMetric, queries: usize, seed: u64) -> (f64
         .sum();
     let n = queries.max(1) as f64;
     (t.elapsed().as_secs_f64() * 1e3 / n, residual / n)
+}
+
+/// Subject B: the same teeth, another joint. Adapt A's envelope rig to B from B's five extremal
+/// poses (reduced and full) and score each over all of B's motion, with A's rig as it is and
+/// B's own rig (learned from all its poses) for reference.
+fn adapt_to_variant(
+    poses_a: &[jawtrack::geometry::Pose],
+    frame_a: &jawtrack::envelope::JawFrame,
+    metric_a: &MeshMetric,
+    a: &RigArgs,
+    dir: &std::path::Path,
+) -> anyhow::Result<Vec<AdaptRow>> {
+    use jawtrack::envelope::adapt::{Adaptation, adapt, extremes};
+    use jawtrack::envelope::{EnvelopeRig, JawFrame, compare::front_weights};
+    let capture = dir.join("variant");
+    let opts = SynthOptions {
+        frames: a.frames,
+        seed: a.seed,
+        meshes: a.meshes.clone(),
+        no_masks: true,
+        joint: jawtrack::synth::Joint::Variant,
+        ..Default::default()
+    };
+    generate(&capture, &opts, &|| {}).context("synthesising the second subject")?;
+    let (mesh_b, metric_b) = super::rig::load_mesh(&capture.join("meshes/mandible.obj"))?;
+    let frame_b = JawFrame::from_mesh(&mesh_b, None, None)?;
+    let poses_b = read_jaw_poses(&capture.join("gt/poses.json"))?.poses;
+    let reference = nalgebra::Vector3::from(frame_b.reference);
+    let points: Vec<_> = poses_b
+        .iter()
+        .map(|p| p.transform_point(&reference))
+        .collect();
+    let measured = extremes(&points).map(|i| poses_b[i]);
+    let source = EnvelopeRig::learn(poses_a, frame_a, metric_a)?;
+    let weights = front_weights(&metric_b, &frame_b);
+    let score =
+        |name: &'static str,
+         rebuild: &dyn Fn(&jawtrack::geometry::Pose) -> jawtrack::geometry::Pose| {
+            let (max, front): (Vec<f64>, Vec<f64>) = poses_b
+                .iter()
+                .map(|p| {
+                    let q = rebuild(p);
+                    (
+                        metric_b.max_distance(p, &q),
+                        metric_b.weighted_mean_distance(p, &q, &weights),
+                    )
+                })
+                .unzip();
+            AdaptRow {
+                name,
+                max_vertex_mm: jawtrack::stats::Stats::of(&max),
+                front_weighted_mm: jawtrack::stats::Stats::of(&front),
+            }
+        };
+    let reduced = adapt(&source, &measured, &frame_b, &metric_b, Adaptation::Reduced)?;
+    let full = adapt(&source, &measured, &frame_b, &metric_b, Adaptation::Full)?;
+    let own = EnvelopeRig::learn(&poses_b, &frame_b, &metric_b)?;
+    Ok(vec![
+        score("source rig, not adapted", &|p| source.reconstruct(p)),
+        score("reduced adaptation (5 points)", &|p| reduced.reconstruct(p)),
+        score("full adaptation (5 poses)", &|p| full.reconstruct(p)),
+        score("rig learned from all its poses", &|p| own.reconstruct(p)),
+    ])
 }

@@ -40,6 +40,7 @@ pub fn run(a: Args) -> anyhow::Result<()> {
         meshes: None,
         force,
         no_masks: false,
+        joint: Default::default(),
     };
     println!(
         "== 1. synthesise a {:?} capture: three cameras, half-resolution masks",

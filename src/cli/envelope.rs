@@ -3,6 +3,7 @@
 use std::path::PathBuf;
 
 use anyhow::{Context, bail};
+use jawtrack::envelope::adapt::{Adaptation, EXTREMES};
 use jawtrack::envelope::{EnvelopeRig, JawFrame, model::bijectivity};
 use jawtrack::geometry::Pose;
 use jawtrack::rig::eval::Series;
@@ -21,6 +22,26 @@ pub enum Command {
     Reconstruct(ReconstructArgs),
     /// Reconstruction error and bijectivity (Eq. 15) on a set of poses.
     Eval(EvalArgs),
+    /// Adapt a rig to a new subject from five measured extremal poses.
+    Adapt(AdaptArgs),
+}
+
+#[derive(clap::Args)]
+pub struct AdaptArgs {
+    /// The source subject's envelope rig.
+    pub envelope: PathBuf,
+    /// The new subject's five extremal poses, in this order: open, left, right, front, back
+    /// (tracks.json, gt/poses.json or jawtrack-jaw/1).
+    #[arg(long)]
+    pub poses: PathBuf,
+    /// The new subject's mandible (lower frame).
+    #[arg(long)]
+    pub mesh: PathBuf,
+    /// Reduced (only the reference points of the poses) or full (the whole poses).
+    #[arg(long, value_enum, default_value_t = Adaptation::Full)]
+    pub mode: Adaptation,
+    #[arg(short, long)]
+    pub out: PathBuf,
 }
 
 #[derive(clap::Args)]
@@ -81,6 +102,7 @@ pub fn run(c: Command) -> anyhow::Result<()> {
         Command::Pose(a) => pose(a),
         Command::Reconstruct(a) => reconstruct(a),
         Command::Eval(a) => evaluate(a),
+        Command::Adapt(a) => adapt(a),
     }
 }
 
@@ -250,5 +272,31 @@ fn evaluate(a: EvalArgs) -> anyhow::Result<()> {
             s.name, s.stats.mean, s.stats.median, s.stats.p95, s.stats.max
         );
     }
+    Ok(())
+}
+
+fn adapt(a: AdaptArgs) -> anyhow::Result<()> {
+    let source = EnvelopeRig::load(&a.envelope)?;
+    let poses = jawtrack::rig::read_jaw_poses(&a.poses)?;
+    let measured: [Pose; 5] = poses.poses.as_slice().try_into().map_err(|_| {
+        anyhow::anyhow!(
+            "{}: expected exactly five poses ({}), found {}",
+            a.poses.display(),
+            EXTREMES.join(", "),
+            poses.len()
+        )
+    })?;
+    let (mesh, metric) = super::rig::load_mesh(&a.mesh)?;
+    let frame = frame_of(&a.mesh, &mesh, None, None)?;
+    let rig = jawtrack::envelope::adapt::adapt(&source, &measured, &frame, &metric, a.mode)?;
+    rig.save(&a.out)?;
+    println!(
+        "adapted {} to the new subject ({:?}, five poses: {}) in {:.2} s: {}",
+        a.envelope.display(),
+        a.mode,
+        EXTREMES.join(", "),
+        rig.seconds,
+        a.out.display()
+    );
     Ok(())
 }

@@ -1,7 +1,7 @@
 use std::path::{Path, PathBuf};
 
 use anyhow::Context;
-use jawtrack::synth::{self, MaskKind, Preset, SynthOptions, SynthReport};
+use jawtrack::synth::{self, Joint, MaskKind, Preset, SynthOptions, SynthReport};
 
 #[derive(clap::Args)]
 pub struct Args {
@@ -30,6 +30,9 @@ pub struct Args {
     /// `jawtrack rig`, quickly.
     #[arg(long)]
     pub no_masks: bool,
+    /// The subject's temporomandibular joint.
+    #[arg(long, value_enum, default_value_t = Joint::Average)]
+    pub joint: Joint,
     /// Print the report as JSON.
     #[arg(long)]
     pub json: bool,
@@ -44,6 +47,7 @@ pub fn run(a: Args) -> anyhow::Result<()> {
         meshes: a.meshes,
         force: a.force,
         no_masks: a.no_masks,
+        joint: a.joint,
     };
     let report = generate(&a.out, &opts)?;
     if a.json {

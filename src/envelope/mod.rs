@@ -2,6 +2,7 @@
 //! frame, traditional rigs as baselines, Posselt's envelope, the RBF manifold map and the
 //! unit-cube parameterisation.
 
+pub mod adapt;
 pub mod compare;
 pub mod frame;
 pub mod model;

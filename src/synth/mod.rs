@@ -52,6 +52,16 @@ pub enum Preset {
     Hard,
 }
 
+/// Which temporomandibular joint the subject has.
+#[derive(Debug, Clone, Copy, Default, PartialEq, Eq, clap::ValueEnum)]
+pub enum Joint {
+    /// An average adult joint.
+    #[default]
+    Average,
+    /// A second subject: condyles placed differently, a steeper eminence, less opening.
+    Variant,
+}
+
 #[derive(Debug, Clone, Copy, PartialEq, Eq, clap::ValueEnum)]
 pub enum MaskKind {
     PerArch,
@@ -71,6 +81,7 @@ pub struct SynthOptions {
     /// Write no masks: meshes, cameras, init and ground truth only (for learning a rig from
     /// the motion; every frame of such a capture is `no-data` to the tracker).
     pub no_masks: bool,
+    pub joint: Joint,
 }
 
 impl Default for SynthOptions {
@@ -83,6 +94,7 @@ impl Default for SynthOptions {
             meshes: None,
             force: false,
             no_masks: false,
+            joint: Joint::Average,
         }
     }
 }
@@ -182,7 +194,10 @@ impl Session {
             ),
         };
         let rest = arches::rest_bite(&upper, &lower);
-        let jaw = JawModel::for_arches(&upper, rest);
+        let jaw = match opts.joint {
+            Joint::Average => JawModel::for_arches(&upper, rest),
+            Joint::Variant => JawModel::variant_for_arches(&upper, rest),
+        };
         let mandible = mandible::mandible_mesh(&lower, &jaw);
         let (ulo, uhi) = upper.bounds();
         let anchor = Vector3::new((ulo[0] + uhi[0]) as f64 * 0.5, ulo[1] as f64, uhi[2] as f64);

@@ -70,6 +70,28 @@ impl JawModel {
         rest + Vector3::new(0.0, -drop, s)
     }
 
+    /// A second subject whose joint differs: condyles closer together (94 mm), further forward
+    /// and lower; a steeper, shorter eminence (9 mm over 16 mm); less opening (26°) with more
+    /// hinge-only rotation, shorter travels.
+    pub fn variant_for_arches(upper: &Mesh, rest: Pose) -> JawModel {
+        let (lo, hi) = upper.bounds();
+        let mid_x = (lo[0] + hi[0]) as f64 * 0.5;
+        let y = lo[1] as f64 + 21.0;
+        let z = hi[2] as f64 - 82.0;
+        JawModel {
+            condyle_left: Vector3::new(mid_x + 47.0, y, z),
+            condyle_right: Vector3::new(mid_x - 47.0, y, z),
+            eminence_height_mm: 9.0,
+            eminence_length_mm: 16.0,
+            max_opening_rad: 26f64.to_radians(),
+            hinge_only_rad: 9f64.to_radians(),
+            opening_travel_mm: 13.0,
+            protrusion_travel_mm: 9.0,
+            lateral_travel_mm: 10.0,
+            rest,
+        }
+    }
+
     /// Condylar travel (left, right) and hinge rotation for the controls.
     pub fn joint_state(&self, c: &JawControls) -> (f64, f64, f64) {
         let open = c.open.clamp(0.0, 1.0);

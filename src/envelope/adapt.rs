@@ -1,0 +1,260 @@
+//! Adapting an envelope rig to a new subject from five measured extremal poses (Zoss et al.
+//! 2018, Sec. 5.2): open, left, right, front, back.
+//!
+//! 1. The source's extremal points (the envelope's lowest, leftmost, rightmost, most anterior
+//!    and most posterior reference-point positions, upper frame) are aligned to the measured
+//!    ones by a Procrustes fit T_C of position and scale (see [`Similarity`] for why not
+//!    rotation).
+//! 2. The envelope is deformed: every point of the aligned source envelope moves by a smooth
+//!    field (Gaussian RBF interpolation over the unit cube, exact at the five points) that
+//!    takes the five aligned points onto the measured ones. This stands in for the paper's
+//!    Laplacian shell deformation: smooth, exact at the constraints, and it keeps the cube
+//!    correspondence, which is all the retargeting uses.
+//! 3. A dense set of poses is retargeted through the cube: for cube point s, the source pose's
+//!    rotation turned by T_C (reduced adaptation) and, in full adaptation, by a smooth
+//!    correction interpolated from the five measured poses (exact at them, the role of Eq. 14
+//!    and 12); the translation is then solved so that the new subject's reference point lands
+//!    exactly on the deformed envelope (Eq. 10 with the largest weight). The origin is
+//!    T_C·o*, as the paper initialises it.
+//! 4. The new rig is learned from those poses like any other (Eq. 8, Sec. 5.1).
+
+use nalgebra::{DMatrix, Rotation3, Vector3};
+use serde::{Deserialize, Serialize};
+
+use super::frame::JawFrame;
+use super::model::{EnvelopeError, EnvelopeRig};
+use crate::geometry::{Pose, so3_exp, so3_log};
+use crate::rig::MeshMetric;
+
+/// The measured poses' order.
+pub const EXTREMES: [&str; 5] = ["open", "left", "right", "front", "back"];
+
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Serialize, Deserialize, clap::ValueEnum)]
+pub enum Adaptation {
+    /// Only the reference point of each measured pose is used.
+    Reduced,
+    /// The whole measured poses.
+    Full,
+}
+
+/// Cube points per axis of the retargeted corpus.
+const SAMPLES: usize = 9;
+/// Width (cube units) of the interpolating kernels over the cube.
+const KERNEL: f64 = 0.5;
+/// Cube points per axis scanned for the source's extremes.
+const SCAN: usize = 21;
+
+/// The index, among `points`, of the open (lowest), left (largest x), right (smallest x),
+/// front (largest z) and back extreme (upper frame: y up, x the subject's left, z forward).
+/// Back is the most posterior point near the top (within 15 % of the height): the wide-open
+/// point lies further back, but it is the open extreme.
+pub fn extremes(points: &[Vector3<f64>]) -> [usize; 5] {
+    let arg = |keep: &dyn Fn(&Vector3<f64>) -> bool, key: &dyn Fn(&Vector3<f64>) -> f64| {
+        points
+            .iter()
+            .enumerate()
+            .filter(|(_, p)| keep(p))
+            .max_by(|a, b| key(a.1).total_cmp(&key(b.1)))
+            .map_or(0, |(i, _)| i)
+    };
+    let top = points.iter().map(|p| p.y).fold(f64::NEG_INFINITY, f64::max);
+    let bottom = points.iter().map(|p| p.y).fold(f64::INFINITY, f64::min);
+    let near_top = top - 0.15 * (top - bottom);
+    let all = |_: &Vector3<f64>| true;
+    [
+        arg(&all, &|p| -p.y),
+        arg(&all, &|p| p.x),
+        arg(&all, &|p| -p.x),
+        arg(&all, &|p| p.z),
+        arg(&|p| p.y >= near_top, &|p| -p.z),
+    ]
+}
+
+/// Procrustes with scale and without rotation: p ↦ c' + k·(p − c). Both subjects' poses are
+/// in frames with the same anatomical axes (the capture format's convention: y up, z forward),
+/// so only position and size differ; a rotation fitted to five points of two differently
+/// shaped envelopes would be spurious (measured: 3° between the two synthetic subjects, which
+/// turns every retargeted pose and costs millimetres at the condyles).
+struct Similarity {
+    translation: Vector3<f64>,
+    centre: Vector3<f64>,
+    /// The same on every axis.
+    scale: Vector3<f64>,
+}
+
+impl Similarity {
+    fn fit(a: &[Vector3<f64>], b: &[Vector3<f64>]) -> Similarity {
+        let n = a.len().max(1) as f64;
+        let (ca, cb) = (
+            a.iter().sum::<Vector3<f64>>() / n,
+            b.iter().sum::<Vector3<f64>>() / n,
+        );
+        // One scale for all axes (per-axis scales fitted to five points overshoot: measured,
+        // a full adaptation whose worst pose erred by 106 mm).
+        let spread = |v: &[Vector3<f64>], c: &Vector3<f64>| {
+            v.iter().map(|p| (p - c).norm_squared()).sum::<f64>()
+        };
+        let k = (spread(b, &cb) / spread(a, &ca).max(1e-12)).sqrt();
+        let scale = Vector3::repeat(k);
+        Similarity {
+            translation: cb - ca,
+            centre: ca,
+            scale,
+        }
+    }
+
+    fn point(&self, p: &Vector3<f64>) -> Vector3<f64> {
+        self.centre + (p - self.centre).component_mul(&self.scale) + self.translation
+    }
+
+    fn inverse_point(&self, q: &Vector3<f64>) -> Vector3<f64> {
+        self.centre + (q - self.translation - self.centre).component_div(&self.scale)
+    }
+}
+
+/// Smooth interpolation over the cube, exact at the five points: Gaussian kernels.
+struct CubeField {
+    at: Vec<[f64; 3]>,
+    weights: DMatrix<f64>,
+}
+
+impl CubeField {
+    fn kernel(a: &[f64; 3], b: &[f64; 3]) -> f64 {
+        let d2: f64 = a.iter().zip(b).map(|(x, y)| (x - y).powi(2)).sum();
+        (-0.5 * d2 / (KERNEL * KERNEL)).exp()
+    }
+
+    fn new(at: &[[f64; 3]], values: &[Vector3<f64>]) -> CubeField {
+        let n = at.len();
+        let k = DMatrix::from_fn(n, n, |i, j| {
+            Self::kernel(&at[i], &at[j]) + if i == j { 1e-9 } else { 0.0 }
+        });
+        let v = DMatrix::from_fn(n, 3, |i, c| values[i][c]);
+        let weights = k.lu().solve(&v).unwrap_or_else(|| DMatrix::zeros(n, 3));
+        CubeField {
+            at: at.to_vec(),
+            weights,
+        }
+    }
+
+    fn eval(&self, s: &[f64; 3]) -> Vector3<f64> {
+        let mut out = Vector3::zeros();
+        for (i, a) in self.at.iter().enumerate() {
+            let k = Self::kernel(s, a);
+            for c in 0..3 {
+                out[c] += k * self.weights[(i, c)];
+            }
+        }
+        out
+    }
+}
+
+/// The adapted rig. `measured`: the new subject's five poses (upper_from_lower, its own
+/// mandible), in the order of [`EXTREMES`]; `frame` and `metric`: its mandible.
+pub fn adapt(
+    source: &EnvelopeRig,
+    measured: &[Pose; 5],
+    frame: &JawFrame,
+    metric: &MeshMetric,
+    mode: Adaptation,
+) -> Result<EnvelopeRig, EnvelopeError> {
+    // The source's extremes, found on its envelope.
+    let mut grid = Vec::with_capacity(SCAN * SCAN * SCAN);
+    for i in 0..SCAN {
+        for j in 0..SCAN {
+            for k in 0..SCAN {
+                grid.push([i, j, k].map(|v| v as f64 / (SCAN - 1) as f64));
+            }
+        }
+    }
+    let upper = |s: &[f64; 3]| source.to_upper(&source.shield.point(s));
+    let grid_points: Vec<Vector3<f64>> = grid.iter().map(upper).collect();
+    let cube_at: Vec<[f64; 3]> = extremes(&grid_points).iter().map(|&i| grid[i]).collect();
+    let source_points: Vec<Vector3<f64>> = cube_at.iter().map(upper).collect();
+    let reference = Vector3::from(frame.reference);
+    let target_points: Vec<Vector3<f64>> = measured
+        .iter()
+        .map(|p| p.transform_point(&reference))
+        .collect();
+    let align = Similarity::fit(&source_points, &target_points);
+    let offsets: Vec<Vector3<f64>> = source_points
+        .iter()
+        .zip(&target_points)
+        .map(|(s, t)| t - align.point(s))
+        .collect();
+    let deform = CubeField::new(&cube_at, &offsets);
+    // The source's rotation where its own reference point would be at `point` (upper frame,
+    // the new subject's): the point taken back through the alignment, into the source's
+    // envelope.
+    let source_rotation = |point: &Vector3<f64>| {
+        let back = align.inverse_point(point);
+        source.pose_at(&source.from_upper(&back)).rotation
+    };
+    let correction = match mode {
+        Adaptation::Reduced => None,
+        Adaptation::Full => {
+            let logs: Vec<Vector3<f64>> = target_points
+                .iter()
+                .zip(measured)
+                .map(|(p, m)| so3_log(&(m.rotation * source_rotation(p).inverse())))
+                .collect();
+            Some(CubeField::new(&cube_at, &logs))
+        }
+    };
+    let mut poses = Vec::with_capacity(SAMPLES * SAMPLES * SAMPLES);
+    for i in 0..SAMPLES {
+        for j in 0..SAMPLES {
+            for k in 0..SAMPLES {
+                let s = [i, j, k].map(|v| v as f64 / (SAMPLES - 1) as f64);
+                let point = align.point(&upper(&s)) + deform.eval(&s);
+                let turn = correction
+                    .as_ref()
+                    .map_or(Rotation3::identity(), |c| so3_exp(&c.eval(&s)));
+                let rotation = turn * source_rotation(&point);
+                poses.push(Pose::new(rotation, point - rotation * reference));
+            }
+        }
+    }
+    EnvelopeRig::learn(&poses, frame, metric)
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn the_cube_field_interpolates_exactly_and_smoothly() {
+        let at = [
+            [0.5, 1.0, 0.5],
+            [0.0, 0.3, 0.5],
+            [1.0, 0.3, 0.5],
+            [0.5, 0.2, 1.0],
+            [0.5, 0.1, 0.0],
+        ];
+        let values: Vec<Vector3<f64>> = (0..5)
+            .map(|i| Vector3::new(i as f64, -(i as f64), 2.0))
+            .collect();
+        let f = CubeField::new(&at, &values);
+        for (a, v) in at.iter().zip(&values) {
+            assert!((f.eval(a) - v).norm() < 1e-6);
+        }
+        let mid = f.eval(&[0.5, 0.5, 0.5]);
+        assert!(
+            mid.iter().all(|v| v.is_finite() && v.abs() < 10.0),
+            "{mid:?}"
+        );
+    }
+
+    #[test]
+    fn extremes_pick_the_expected_points() {
+        let pts = [
+            Vector3::new(0.0, 0.0, 0.0),
+            Vector3::new(0.0, -40.0, -5.0),
+            Vector3::new(10.0, -2.0, 0.0),
+            Vector3::new(-10.0, -2.0, 0.0),
+            Vector3::new(0.0, -3.0, 8.0),
+            Vector3::new(0.0, -1.0, -2.0),
+        ];
+        assert_eq!(extremes(&pts), [1, 2, 3, 4, 5]);
+    }
+}
