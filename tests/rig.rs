@@ -259,7 +259,7 @@ fn the_envelope_rig_file_round_trips_and_controls_work() {
 
 #[test]
 fn full_adaptation_to_another_joint_beats_reduced() {
-    use jawtrack::envelope::adapt::{Adaptation, adapt, extremes};
+    use jawtrack::envelope::adapt::{Adaptation, adapt, extremal_poses};
     use jawtrack::envelope::{EnvelopeRig, JawFrame};
     let f = fixture();
     let dir = tempfile::tempdir().unwrap();
@@ -278,12 +278,7 @@ fn full_adaptation_to_another_joint_beats_reduced() {
     let frame_b = JawFrame::from_mesh(&mandible_b, None, None).unwrap();
     let frame_a = JawFrame::from_mesh(&f.mandible, None, None).unwrap();
     let source = EnvelopeRig::learn(&f.poses.poses, &frame_a, &f.metric).unwrap();
-    let reference = nalgebra::Vector3::from(frame_b.reference);
-    let points: Vec<_> = poses_b
-        .iter()
-        .map(|p| p.transform_point(&reference))
-        .collect();
-    let measured = extremes(&points).map(|i| poses_b[i]);
+    let measured = extremal_poses(&poses_b, &frame_b);
     let mean_error = |mode| {
         let rig = adapt(&source, &measured, &frame_b, &metric_b, mode).unwrap();
         poses_b

@@ -177,7 +177,7 @@ fn adapt_to_variant(
     a: &RigArgs,
     dir: &std::path::Path,
 ) -> anyhow::Result<Vec<AdaptRow>> {
-    use jawtrack::envelope::adapt::{Adaptation, adapt, extremes};
+    use jawtrack::envelope::adapt::{Adaptation, adapt, extremal_poses};
     use jawtrack::envelope::{EnvelopeRig, JawFrame, compare::front_weights};
     let capture = dir.join("variant");
     let opts = SynthOptions {
@@ -192,12 +192,7 @@ fn adapt_to_variant(
     let (mesh_b, metric_b) = super::rig::load_mesh(&capture.join("meshes/mandible.obj"))?;
     let frame_b = JawFrame::from_mesh(&mesh_b, None, None)?;
     let poses_b = read_jaw_poses(&capture.join("gt/poses.json"))?.poses;
-    let reference = nalgebra::Vector3::from(frame_b.reference);
-    let points: Vec<_> = poses_b
-        .iter()
-        .map(|p| p.transform_point(&reference))
-        .collect();
-    let measured = extremes(&points).map(|i| poses_b[i]);
+    let measured = extremal_poses(&poses_b, &frame_b);
     let source = EnvelopeRig::learn(poses_a, frame_a, metric_a)?;
     let weights = front_weights(&metric_b, &frame_b);
     let score =

@@ -112,6 +112,17 @@ impl Similarity {
     }
 }
 
+/// The five extremal poses of a subject's motion (for a test or a benchmark: the poses whose
+/// reference point is the open, left, right, front and back extreme).
+pub fn extremal_poses(poses: &[Pose], frame: &JawFrame) -> [Pose; 5] {
+    let reference = Vector3::from(frame.reference);
+    let points: Vec<Vector3<f64>> = poses
+        .iter()
+        .map(|p| p.transform_point(&reference))
+        .collect();
+    extremes(&points).map(|i| poses.get(i).copied().unwrap_or(Pose::IDENTITY))
+}
+
 /// Smooth interpolation over the cube from the five points: normalised Gaussian weights (a
 /// partition of unity), so the field never exceeds the values it is given (an interpolating
 /// Gaussian field overshoots between the points: measured, a full adaptation whose worst pose

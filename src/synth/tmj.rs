@@ -18,6 +18,46 @@ pub struct JawControls {
     pub protrusion: f64,
 }
 
+/// A joint's shape, placed relative to the upper arch's incisal edge and midline.
+struct JointSpec {
+    half_width_mm: f64,
+    above_mm: f64,
+    behind_mm: f64,
+    eminence_height_mm: f64,
+    eminence_length_mm: f64,
+    max_opening_deg: f64,
+    hinge_only_deg: f64,
+    opening_travel_mm: f64,
+    protrusion_travel_mm: f64,
+    lateral_travel_mm: f64,
+}
+
+const AVERAGE: JointSpec = JointSpec {
+    half_width_mm: 50.0,
+    above_mm: 25.0,
+    behind_mm: 88.0,
+    eminence_height_mm: 7.0,
+    eminence_length_mm: 20.0,
+    max_opening_deg: 30.0,
+    hinge_only_deg: 6.0,
+    opening_travel_mm: 16.0,
+    protrusion_travel_mm: 11.0,
+    lateral_travel_mm: 11.5,
+};
+
+const VARIANT: JointSpec = JointSpec {
+    half_width_mm: 47.0,
+    above_mm: 21.0,
+    behind_mm: 82.0,
+    eminence_height_mm: 9.0,
+    eminence_length_mm: 16.0,
+    max_opening_deg: 26.0,
+    hinge_only_deg: 9.0,
+    opening_travel_mm: 13.0,
+    protrusion_travel_mm: 9.0,
+    lateral_travel_mm: 10.0,
+};
+
 #[derive(Debug, Clone)]
 pub struct JawModel {
     /// Condyle centres at rest, upper-arch frame; left is +x.
@@ -42,20 +82,31 @@ impl JawModel {
     /// An average adult joint placed from the upper arch: condyles 100 mm apart, 88 mm behind
     /// and 25 mm above the upper incisal edge; a 7 mm high, 20 mm long eminence.
     pub fn for_arches(upper: &Mesh, rest: Pose) -> JawModel {
+        Self::from_spec(upper, rest, &AVERAGE)
+    }
+
+    /// A second subject whose joint differs: condyles closer together (94 mm), further forward
+    /// and lower; a steeper, shorter eminence (9 mm over 16 mm); less opening (26°) with more
+    /// hinge-only rotation, shorter travels.
+    pub fn variant_for_arches(upper: &Mesh, rest: Pose) -> JawModel {
+        Self::from_spec(upper, rest, &VARIANT)
+    }
+
+    fn from_spec(upper: &Mesh, rest: Pose, j: &JointSpec) -> JawModel {
         let (lo, hi) = upper.bounds();
         let mid_x = (lo[0] + hi[0]) as f64 * 0.5;
-        let y = lo[1] as f64 + 25.0;
-        let z = hi[2] as f64 - 88.0;
+        let y = lo[1] as f64 + j.above_mm;
+        let z = hi[2] as f64 - j.behind_mm;
         JawModel {
-            condyle_left: Vector3::new(mid_x + 50.0, y, z),
-            condyle_right: Vector3::new(mid_x - 50.0, y, z),
-            eminence_height_mm: 7.0,
-            eminence_length_mm: 20.0,
-            max_opening_rad: 30f64.to_radians(),
-            hinge_only_rad: 6f64.to_radians(),
-            opening_travel_mm: 16.0,
-            protrusion_travel_mm: 11.0,
-            lateral_travel_mm: 11.5,
+            condyle_left: Vector3::new(mid_x + j.half_width_mm, y, z),
+            condyle_right: Vector3::new(mid_x - j.half_width_mm, y, z),
+            eminence_height_mm: j.eminence_height_mm,
+            eminence_length_mm: j.eminence_length_mm,
+            max_opening_rad: j.max_opening_deg.to_radians(),
+            hinge_only_rad: j.hinge_only_deg.to_radians(),
+            opening_travel_mm: j.opening_travel_mm,
+            protrusion_travel_mm: j.protrusion_travel_mm,
+            lateral_travel_mm: j.lateral_travel_mm,
             rest,
         }
     }
@@ -68,28 +119,6 @@ impl JawModel {
             * (1.0 - (std::f64::consts::PI * s / self.eminence_length_mm).cos())
             * 0.5;
         rest + Vector3::new(0.0, -drop, s)
-    }
-
-    /// A second subject whose joint differs: condyles closer together (94 mm), further forward
-    /// and lower; a steeper, shorter eminence (9 mm over 16 mm); less opening (26°) with more
-    /// hinge-only rotation, shorter travels.
-    pub fn variant_for_arches(upper: &Mesh, rest: Pose) -> JawModel {
-        let (lo, hi) = upper.bounds();
-        let mid_x = (lo[0] + hi[0]) as f64 * 0.5;
-        let y = lo[1] as f64 + 21.0;
-        let z = hi[2] as f64 - 82.0;
-        JawModel {
-            condyle_left: Vector3::new(mid_x + 47.0, y, z),
-            condyle_right: Vector3::new(mid_x - 47.0, y, z),
-            eminence_height_mm: 9.0,
-            eminence_length_mm: 16.0,
-            max_opening_rad: 26f64.to_radians(),
-            hinge_only_rad: 9f64.to_radians(),
-            opening_travel_mm: 13.0,
-            protrusion_travel_mm: 9.0,
-            lateral_travel_mm: 10.0,
-            rest,
-        }
     }
 
     /// Condylar travel (left, right) and hinge rotation for the controls.
