@@ -38,9 +38,16 @@ pub enum Error {
     },
     #[error("{}: cannot decode the image: {problem}", path.display())]
     Image { path: PathBuf, problem: String },
-    /// The GPU energy engine could not start or run.
+    /// The GPU energy engine could not start or run. (Part of the message, not a `#[source]`,
+    /// so anyhow does not print it twice.)
     #[error("GPU: {0}")]
-    Gpu(#[from] crate::energy::gpu::GpuError),
+    Gpu(crate::energy::gpu::GpuError),
+}
+
+impl From<crate::energy::gpu::GpuError> for Error {
+    fn from(e: crate::energy::gpu::GpuError) -> Self {
+        Error::Gpu(e)
+    }
 }
 
 pub type Result<T, E = Error> = std::result::Result<T, E>;

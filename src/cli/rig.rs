@@ -14,6 +14,7 @@ use serde::Serialize;
 #[derive(clap::Subcommand)]
 pub enum Command {
     /// Learn a rig from jaw poses (a tracks.json, gt/poses.json or jawtrack-jaw/1 file).
+    #[command(allow_negative_numbers = true)]
     Learn(LearnArgs),
     /// The paper's figures for a rig on a set of poses: reconstruction error of PCA, NLPCA and
     /// the rig (Fig. 12) and random rig poses against the captured ones (Fig. 13).

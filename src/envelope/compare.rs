@@ -26,12 +26,26 @@ pub struct Row {
     pub front_weighted_mm: Stats,
 }
 
+/// (The inner errors are part of the message, not `#[source]`s, so anyhow does not print them
+/// twice.)
 #[derive(Debug, thiserror::Error)]
 pub enum CompareError {
     #[error("the NLPCA rig: {0}")]
-    Rig(#[from] RigError),
+    Rig(RigError),
     #[error("the envelope rig: {0}")]
-    Envelope(#[from] EnvelopeError),
+    Envelope(EnvelopeError),
+}
+
+impl From<RigError> for CompareError {
+    fn from(e: RigError) -> Self {
+        CompareError::Rig(e)
+    }
+}
+
+impl From<EnvelopeError> for CompareError {
+    fn from(e: EnvelopeError) -> Self {
+        CompareError::Envelope(e)
+    }
 }
 
 /// Vertex weights growing from the back of the mandible to the front (the paper's weight map:

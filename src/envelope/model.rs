@@ -18,12 +18,26 @@ use crate::rig::MeshMetric;
 
 pub const ENVELOPE_FORMAT: &str = "jawtrack-envelope/1";
 
+/// (The inner errors are part of the message, not `#[source]`s, so anyhow does not print them
+/// twice.)
 #[derive(Debug, thiserror::Error)]
 pub enum EnvelopeError {
     #[error("the jaw frame: {0}")]
-    Frame(#[from] FrameError),
+    Frame(FrameError),
     #[error("Posselt's envelope: {0}")]
-    Shield(#[from] ShieldError),
+    Shield(ShieldError),
+}
+
+impl From<FrameError> for EnvelopeError {
+    fn from(e: FrameError) -> Self {
+        EnvelopeError::Frame(e)
+    }
+}
+
+impl From<ShieldError> for EnvelopeError {
+    fn from(e: ShieldError) -> Self {
+        EnvelopeError::Shield(e)
+    }
 }
 
 #[derive(Debug, Clone, Serialize, Deserialize)]

@@ -59,6 +59,11 @@ impl JawPoses {
 pub fn read_jaw_poses(path: &Path) -> Result<JawPoses> {
     let any: AnyPosesJson = read_json(path, "jaw poses (tracks.json or jawtrack-jaw/1)")?;
     let mut out = JawPoses::default();
+    let list = if any.format.as_deref() == Some(JAW_FORMAT) {
+        "poses"
+    } else {
+        "frames"
+    };
     match any.format.as_deref() {
         Some(JAW_FORMAT) => {
             let poses = any.poses.ok_or_else(|| {
@@ -107,7 +112,7 @@ pub fn read_jaw_poses(path: &Path) -> Result<JawPoses> {
     if out.poses.is_empty() {
         return Err(Error::invalid(
             path,
-            "frames",
+            list,
             format!(
                 "no usable jaw poses ({} frames skipped for a status other than `ok`)",
                 out.skipped

@@ -79,14 +79,20 @@ impl Default for RigSettings {
 pub enum RigError {
     #[error("learning the rig needs at least {need} jaw poses, got {got}")]
     TooFewPoses { need: usize, got: usize },
-    #[error("the {stage} network: {source}")]
+    #[error("the {stage} network: {error}")]
     Nlpca {
         stage: &'static str,
-        #[source]
-        source: NlpcaError,
+        error: NlpcaError,
     },
+    // Not a `#[source]`: the message already says it, and anyhow would print it twice.
     #[error("valid ranges: {0}")]
-    Ranges(#[from] RangeError),
+    Ranges(RangeError),
+}
+
+impl From<RangeError> for RigError {
+    fn from(e: RangeError) -> Self {
+        RigError::Ranges(e)
+    }
 }
 
 /// How learning went.
@@ -187,7 +193,7 @@ impl JawRig {
         let vectors: Vec<Vector6<f64>> = poses.iter().map(|p| coords.vector(p)).collect();
         let pca = Pca::fit(&vectors);
         let samples: Vec<Vec<f64>> = vectors.iter().map(|v| v.as_slice().to_vec()).collect();
-        let nl = |stage| move |source| RigError::Nlpca { stage, source };
+        let nl = |stage| move |error| RigError::Nlpca { stage, error };
         let (network, network_report) =
             Nlpca::train(&samples, NETWORK_COMPONENTS, &settings.network)
                 .map_err(nl("five-component"))?;
