@@ -238,6 +238,12 @@ pub struct TrackArgs {
     /// Mask kind.
     #[arg(long, value_enum, default_value_t = jawtrack::synth::MaskKind::PerArch)]
     masks: jawtrack::synth::MaskKind,
+    /// The synthetic subject's joint (the tracker's jaw prior assumes an average one).
+    #[arg(long, value_enum, default_value_t = jawtrack::synth::Joint::Average)]
+    joint: jawtrack::synth::Joint,
+    /// Tracking settings (JSON, fields of TrackSettings), e.g. to turn the jaw prior off.
+    #[arg(long)]
+    settings: Option<PathBuf>,
     #[command(flatten)]
     engine: super::energy::EngineArgs,
 }
@@ -314,6 +320,7 @@ pub fn track(a: TrackArgs) -> anyhow::Result<()> {
                 seed,
                 preset: *preset,
                 masks: a.masks,
+                joint: a.joint,
                 ..SynthOptions::default()
             };
             generate(&dir, &opts, &|| {}).context("synthesising")?;
@@ -328,7 +335,7 @@ pub fn track(a: TrackArgs) -> anyhow::Result<()> {
                 resume: false,
                 force: true,
                 max_triangles: None,
-                settings: None,
+                settings: a.settings.clone(),
             };
             let summary = super::track::track(&capture, &args)?;
             seconds += summary.seconds;
