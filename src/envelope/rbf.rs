@@ -25,12 +25,15 @@ pub struct Rbf {
     pub affine: [[f64; 6]; 4],
 }
 
-/// Centres per cube axis.
+/// Centres per cube axis at most; fewer for few poses (about three poses per kernel), so that
+/// a short or noisy capture does not get a map that swings between its points (measured: 44
+/// tracked poses with 216 kernels gave a pose 211 mm off).
 pub const GRID: usize = 6;
+const MIN_GRID: usize = 2;
 /// Width factors tried.
 const FACTORS: [f64; 5] = [0.5, 0.75, 1.0, 1.5, 2.0];
-/// Ridge, relative to the mean diagonal of the normal equations.
-const RIDGE: f64 = 1e-6;
+/// Ridges tried, relative to the mean diagonal of the normal equations.
+const RIDGES: [f64; 3] = [1e-6, 1e-4, 1e-2];
 /// Nearest centres whose mean distance sets a kernel's spacing.
 const SPACING_NEIGHBOURS: usize = 6;
 
@@ -78,6 +81,7 @@ impl Rbf {
         sigmas: &[f64],
         points: &[Vector3<f64>],
         targets: &[[f64; 6]],
+        ridge: f64,
     ) -> Vec<[f64; 6]> {
         let n = centres.len();
         let mut a = DMatrix::<f64>::zeros(points.len(), n);
@@ -89,7 +93,7 @@ impl Rbf {
             }
         }
         let mut ata = a.transpose() * &a;
-        let ridge = RIDGE * (0..n).map(|i| ata[(i, i)]).sum::<f64>() / n as f64;
+        let ridge = ridge * (0..n).map(|i| ata[(i, i)]).sum::<f64>() / n as f64;
         for i in 0..n {
             ata[(i, i)] += ridge.max(1e-12);
         }
@@ -118,11 +122,12 @@ impl Rbf {
             })
             .collect();
         let targets = &residuals[..];
-        let mut centres = Vec::with_capacity(GRID * GRID * GRID);
-        for i in 0..GRID {
-            for j in 0..GRID {
-                for k in 0..GRID {
-                    let s = [i, j, k].map(|v| (v as f64 + 0.5) / GRID as f64);
+        let grid = ((points.len() as f64 / 3.0).cbrt().floor() as usize).clamp(MIN_GRID, GRID);
+        let mut centres = Vec::with_capacity(grid * grid * grid);
+        for i in 0..grid {
+            for j in 0..grid {
+                for k in 0..grid {
+                    let s = [i, j, k].map(|v| (v as f64 + 0.5) / grid as f64);
                     centres.push(shield.point(&s));
                 }
             }
@@ -167,21 +172,22 @@ impl Rbf {
                 })
                 .sum()
         };
-        let factor = if held.is_empty() {
-            1.0
+        let (factor, ridge) = if held.is_empty() {
+            (1.0, RIDGES[0])
         } else {
             FACTORS
                 .iter()
-                .map(|&f| {
+                .flat_map(|&f| RIDGES.iter().map(move |&r| (f, r)))
+                .map(|(f, r)| {
                     let sigmas: Vec<f64> = spacing.iter().map(|s| s * f).collect();
-                    let w = Self::solve(&centres, &sigmas, &tp, &tt);
-                    (f, error(&sigmas, &w))
+                    let w = Self::solve(&centres, &sigmas, &tp, &tt, r);
+                    ((f, r), error(&sigmas, &w))
                 })
                 .min_by(|a, b| a.1.total_cmp(&b.1))
-                .map_or(1.0, |(f, _)| f)
+                .map_or((1.0, RIDGES[0]), |(fr, _)| fr)
         };
         let sigmas: Vec<f64> = spacing.iter().map(|s| s * factor).collect();
-        let weights = Self::solve(&centres, &sigmas, points, targets);
+        let weights = Self::solve(&centres, &sigmas, points, targets, ridge);
         Rbf {
             centres: centres.iter().map(|c| [c.x, c.y, c.z]).collect(),
             sigmas,
