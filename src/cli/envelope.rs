@@ -53,12 +53,8 @@ pub struct LearnArgs {
     pub mesh: PathBuf,
     #[arg(short, long)]
     pub out: PathBuf,
-    /// Vertex indices of the left and right condyles (default: found on the mesh).
-    #[arg(long, value_delimiter = ',', num_args = 2)]
-    pub condyles: Option<Vec<usize>>,
-    /// Vertex index of the reference point, the lower incisal midpoint (default: found).
-    #[arg(long)]
-    pub reference: Option<usize>,
+    #[command(flatten)]
+    pub landmarks: Landmarks,
     /// Also write the envelope's surface (OBJ, upper frame at the neutral pose).
     #[arg(long)]
     pub surface: Option<PathBuf>,
@@ -106,22 +102,34 @@ pub fn run(c: Command) -> anyhow::Result<()> {
     }
 }
 
-/// The jaw frame of a mandible mesh, from given or found landmarks.
-pub(crate) fn frame_of(
-    mesh_path: &std::path::Path,
-    mesh: &jawtrack::capture::Mesh,
-    condyles: Option<&[usize]>,
-    reference: Option<usize>,
-) -> anyhow::Result<JawFrame> {
-    let condyles = condyles.map(|c| [c[0], c[1]]);
-    JawFrame::from_mesh(mesh, condyles, reference)
-        .with_context(|| format!("{}: the jaw frame's landmarks", mesh_path.display()))
+/// The jaw frame's landmarks on the mandible, given or found.
+#[derive(clap::Args, Default)]
+pub struct Landmarks {
+    /// Vertex indices of the left and right condyles (default: found on the mesh).
+    #[arg(long, value_delimiter = ',', num_args = 2)]
+    pub condyles: Option<Vec<usize>>,
+    /// Vertex index of the reference point, the lower incisal midpoint (default: found).
+    #[arg(long)]
+    pub reference: Option<usize>,
+}
+
+impl Landmarks {
+    /// The jaw frame of a mandible mesh.
+    pub(crate) fn frame(
+        &self,
+        mesh_path: &std::path::Path,
+        mesh: &jawtrack::capture::Mesh,
+    ) -> anyhow::Result<JawFrame> {
+        let condyles = self.condyles.as_deref().map(|c| [c[0], c[1]]);
+        JawFrame::from_mesh(mesh, condyles, self.reference)
+            .with_context(|| format!("{}: the jaw frame's landmarks", mesh_path.display()))
+    }
 }
 
 fn learn(a: LearnArgs) -> anyhow::Result<()> {
     let poses = jawtrack::rig::read_jaw_poses(&a.input)?;
     let (mesh, metric) = super::rig::load_mesh(&a.mesh)?;
-    let frame = frame_of(&a.mesh, &mesh, a.condyles.as_deref(), a.reference)?;
+    let frame = a.landmarks.frame(&a.mesh, &mesh)?;
     let rig = EnvelopeRig::learn(&poses.poses, &frame, &metric)?;
     rig.save(&a.out)?;
     let s = &rig.shield;
@@ -287,7 +295,7 @@ fn adapt(a: AdaptArgs) -> anyhow::Result<()> {
         )
     })?;
     let (mesh, metric) = super::rig::load_mesh(&a.mesh)?;
-    let frame = frame_of(&a.mesh, &mesh, None, None)?;
+    let frame = Landmarks::default().frame(&a.mesh, &mesh)?;
     let rig = jawtrack::envelope::adapt::adapt(&source, &measured, &frame, &metric, a.mode)?;
     rig.save(&a.out)?;
     println!(

@@ -47,12 +47,8 @@ pub struct CompareArgs {
     /// The mandible mesh (lower frame): jaw frame landmarks and the error metric.
     #[arg(long)]
     pub mesh: PathBuf,
-    /// Vertex indices of the left and right condyles (default: found on the mesh).
-    #[arg(long, value_delimiter = ',', num_args = 2)]
-    pub condyles: Option<Vec<usize>>,
-    /// Vertex index of the reference point (default: found).
-    #[arg(long)]
-    pub reference: Option<usize>,
+    #[command(flatten)]
+    pub landmarks: super::envelope::Landmarks,
     #[arg(long)]
     pub json: bool,
 }
@@ -712,7 +708,7 @@ fn sample(a: SampleArgs) -> anyhow::Result<()> {
 fn compare(a: CompareArgs) -> anyhow::Result<()> {
     let poses = read_jaw_poses(&a.input)?;
     let (mesh, metric) = load_mesh(&a.mesh)?;
-    let frame = super::envelope::frame_of(&a.mesh, &mesh, a.condyles.as_deref(), a.reference)?;
+    let frame = a.landmarks.frame(&a.mesh, &mesh)?;
     let rows = jawtrack::envelope::compare::compare(&poses.poses, &frame, &metric)?;
     if a.json {
         println!("{}", serde_json::to_string_pretty(&rows)?);

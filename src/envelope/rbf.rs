@@ -38,10 +38,11 @@ const RIDGES: [f64; 3] = [1e-6, 1e-4, 1e-2];
 const SPACING_NEIGHBOURS: usize = 6;
 
 impl Rbf {
-    fn features(centres: &[Vector3<f64>], sigmas: &[f64], p: &Vector3<f64>, out: &mut [f64]) {
+    fn features(centres: &[[f64; 3]], sigmas: &[f64], p: &Vector3<f64>, out: &mut [f64]) {
+        let d2 = |c: &[f64; 3]| (p - Vector3::from(*c)).norm_squared();
         let mut total = 0.0;
         for ((c, s), o) in centres.iter().zip(sigmas).zip(out.iter_mut()) {
-            *o = (-0.5 * (p - c).norm_squared() / (s * s)).exp();
+            *o = (-0.5 * d2(c) / (s * s)).exp();
             total += *o;
         }
         if total > 0.0 {
@@ -51,11 +52,7 @@ impl Rbf {
             let nearest = centres
                 .iter()
                 .enumerate()
-                .min_by(|a, b| {
-                    (p - a.1)
-                        .norm_squared()
-                        .total_cmp(&(p - b.1).norm_squared())
-                })
+                .min_by(|a, b| d2(a.1).total_cmp(&d2(b.1)))
                 .map_or(0, |(i, _)| i);
             out.iter_mut()
                 .enumerate()
@@ -64,9 +61,8 @@ impl Rbf {
     }
 
     pub fn eval(&self, p: &Vector3<f64>) -> [f64; 6] {
-        let centres: Vec<Vector3<f64>> = self.centres.iter().map(|c| Vector3::from(*c)).collect();
-        let mut f = vec![0.0; centres.len()];
-        Self::features(&centres, &self.sigmas, p, &mut f);
+        let mut f = vec![0.0; self.centres.len()];
+        Self::features(&self.centres, &self.sigmas, p, &mut f);
         let a = &self.affine;
         let mut out: [f64; 6] =
             std::array::from_fn(|k| a[3][k] + a[0][k] * p.x + a[1][k] * p.y + a[2][k] * p.z);
@@ -77,7 +73,7 @@ impl Rbf {
     }
 
     fn solve(
-        centres: &[Vector3<f64>],
+        centres: &[[f64; 3]],
         sigmas: &[f64],
         points: &[Vector3<f64>],
         targets: &[[f64; 6]],
@@ -132,6 +128,7 @@ impl Rbf {
                 }
             }
         }
+        let stored: Vec<[f64; 3]> = centres.iter().map(|c| [c.x, c.y, c.z]).collect();
         let spacing: Vec<f64> = centres
             .iter()
             .map(|c| {
@@ -156,7 +153,7 @@ impl Rbf {
         let (hp, ht) = pick(&held);
         let error = |sigmas: &[f64], w: &[[f64; 6]]| -> f64 {
             let rbf = Rbf {
-                centres: centres.iter().map(|c| [c.x, c.y, c.z]).collect(),
+                centres: stored.clone(),
                 sigmas: sigmas.to_vec(),
                 weights: w.to_vec(),
                 affine: [[0.0; 6]; 4],
@@ -180,16 +177,16 @@ impl Rbf {
                 .flat_map(|&f| RIDGES.iter().map(move |&r| (f, r)))
                 .map(|(f, r)| {
                     let sigmas: Vec<f64> = spacing.iter().map(|s| s * f).collect();
-                    let w = Self::solve(&centres, &sigmas, &tp, &tt, r);
+                    let w = Self::solve(&stored, &sigmas, &tp, &tt, r);
                     ((f, r), error(&sigmas, &w))
                 })
                 .min_by(|a, b| a.1.total_cmp(&b.1))
                 .map_or((1.0, RIDGES[0]), |(fr, _)| fr)
         };
         let sigmas: Vec<f64> = spacing.iter().map(|s| s * factor).collect();
-        let weights = Self::solve(&centres, &sigmas, points, targets, ridge);
+        let weights = Self::solve(&stored, &sigmas, points, targets, ridge);
         Rbf {
-            centres: centres.iter().map(|c| [c.x, c.y, c.z]).collect(),
+            centres: stored,
             sigmas,
             weights,
             affine,
