@@ -105,8 +105,8 @@ pub fn run(c: Command) -> anyhow::Result<()> {
 /// The jaw frame's landmarks on the mandible, given or found.
 #[derive(clap::Args, Default)]
 pub struct Landmarks {
-    /// Vertex indices of the left and right condyles (default: found on the mesh).
-    #[arg(long, value_delimiter = ',', num_args = 2)]
+    /// Vertex indices of the left and right condyles: L,R (default: found on the mesh).
+    #[arg(long, value_delimiter = ',')]
     pub condyles: Option<Vec<usize>>,
     /// Vertex index of the reference point, the lower incisal midpoint (default: found).
     #[arg(long)]
@@ -120,7 +120,14 @@ impl Landmarks {
         mesh_path: &std::path::Path,
         mesh: &jawtrack::capture::Mesh,
     ) -> anyhow::Result<JawFrame> {
-        let condyles = self.condyles.as_deref().map(|c| [c[0], c[1]]);
+        let condyles = match self.condyles.as_deref() {
+            None => None,
+            Some(&[l, r]) => Some([l, r]),
+            Some(other) => anyhow::bail!(
+                "--condyles: expected two vertex indices L,R, found {}",
+                other.len()
+            ),
+        };
         JawFrame::from_mesh(mesh, condyles, self.reference)
             .with_context(|| format!("{}: the jaw frame's landmarks", mesh_path.display()))
     }
