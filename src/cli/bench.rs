@@ -265,7 +265,20 @@ struct TrackRow {
     /// Median over frames of tracked error / floor (jaw mean vertex error; floors under
     /// 0.01 mm count as 0.01 mm).
     median_ratio_to_floor: f64,
+    /// Share of frames whose tracked poses have a higher objective (both arches) than the
+    /// floor's: there the search stopped short; elsewhere the energy cannot tell them apart.
+    search_shortfall: f64,
     area_error_percent_median: [f64; 2],
+}
+
+/// The search's objective (E plus the cross-label term, default weights) of both arches.
+fn objective_sum(engine: &dyn EnergyEngine, poses: &ArchPoses) -> anyhow::Result<f64> {
+    let s = jawtrack::track::SearchSettings::default();
+    let mut sum = 0.0;
+    for arch in Arch::BOTH {
+        sum += engine.evaluate(arch, std::slice::from_ref(poses))?[0].objective(s.lambda, s.cross_weight);
+    }
+    Ok(sum)
 }
 
 /// The floor: E minimised by a long, fine search from the true poses (upper, then lower).
@@ -313,6 +326,7 @@ pub fn track(a: TrackArgs) -> anyhow::Result<()> {
         let mut ratio = Vec::new();
         let mut area = [Vec::new(), Vec::new()];
         let (mut seconds, mut evaluations, mut frames) = (0.0, 0usize, 0usize);
+        let mut shortfall = 0usize;
         for &seed in &a.seeds {
             let dir = tmp.path().join(format!("{preset:?}-{seed}"));
             let opts = SynthOptions {
@@ -350,6 +364,11 @@ pub fn track(a: TrackArgs) -> anyhow::Result<()> {
             )?;
             let mut engine = opened.engine;
             let vertices = jawtrack::track::score::sample_vertices(&capture.lower);
+            let tracked: std::collections::HashMap<u32, ArchPoses> = summary
+                .records
+                .iter()
+                .map(|r| Ok((r.frame, jawtrack::track::output::record_poses(&out, r)?.0)))
+                .collect::<anyhow::Result<_>>()?;
             for (frame, err) in &report.per_frame {
                 let truth = capture.gt_poses(*frame).context("ground truth")?;
                 let masks = capture.load_masks(*frame)?;
@@ -358,6 +377,11 @@ pub fn track(a: TrackArgs) -> anyhow::Result<()> {
                 }
                 engine.set_frame(&masks)?;
                 let f = floor_poses(&capture, engine.as_ref(), &truth, *frame)?;
+                let t = tracked[frame];
+                let (et, ef) = (objective_sum(engine.as_ref(), &t)?, objective_sum(engine.as_ref(), &f)?);
+                if et > ef + 0.5 {
+                    shortfall += 1;
+                }
                 let (fj, tj) = (f.jaw(), truth.jaw());
                 let floor_jaw = jawtrack::track::score::mean_distance(&vertices, &fj, &tj);
                 upper.push(err[0]);
@@ -366,7 +390,7 @@ pub fn track(a: TrackArgs) -> anyhow::Result<()> {
                 floor.push(floor_jaw);
                 ratio.push(err[2] / floor_jaw.max(0.01));
                 eprintln!(
-                    "{preset:?} seed {seed} frame {frame}: jaw {:.3} mm, floor {:.3} mm",
+                    "{preset:?} seed {seed} frame {frame}: jaw {:.3} mm, floor {:.3} mm; E tracked {et:.0}, at the floor {ef:.0}",
                     err[2], floor_jaw
                 );
             }
@@ -389,6 +413,7 @@ pub fn track(a: TrackArgs) -> anyhow::Result<()> {
             lower_error_mm: two(&lower),
             jaw_floor_mm: two(&floor),
             median_ratio_to_floor: Stats::of(&ratio).median,
+            search_shortfall: shortfall as f64 / jaw.len().max(1) as f64,
             area_error_percent_median: [Stats::of(&area[0]).median, Stats::of(&area[1]).median],
         });
     }
@@ -399,7 +424,7 @@ pub fn track(a: TrackArgs) -> anyhow::Result<()> {
             "mean vertex error in mm (median / 95th percentile); floor = error of E's minimum found from the truth"
         );
         println!(
-            "{:<10} {:<8} {:>6} {:>8} {:>7} {:>13} {:>13} {:>13} {:>13} {:>11} {:>13}",
+            "{:<10} {:<8} {:>6} {:>8} {:>7} {:>13} {:>13} {:>13} {:>13} {:>11} {:>9} {:>13}",
             "preset",
             "masks",
             "frames",
@@ -410,11 +435,12 @@ pub fn track(a: TrackArgs) -> anyhow::Result<()> {
             "lower",
             "jaw floor",
             "ratio",
+            "shortfall",
             "area err %"
         );
         for r in &rows {
             println!(
-                "{:<10} {:<8} {:>6} {:>8.2} {:>7.0} {:>6.3}/{:<6.3} {:>6.3}/{:<6.3} {:>6.3}/{:<6.3} {:>6.3}/{:<6.3} {:>11.2} {:>6.2}/{:<6.2}",
+                "{:<10} {:<8} {:>6} {:>8.2} {:>7.0} {:>6.3}/{:<6.3} {:>6.3}/{:<6.3} {:>6.3}/{:<6.3} {:>6.3}/{:<6.3} {:>11.2} {:>9.2} {:>6.2}/{:<6.2}",
                 r.preset,
                 r.masks,
                 r.frames,
@@ -429,6 +455,7 @@ pub fn track(a: TrackArgs) -> anyhow::Result<()> {
                 r.jaw_floor_mm[0],
                 r.jaw_floor_mm[1],
                 r.median_ratio_to_floor,
+                r.search_shortfall,
                 r.area_error_percent_median[0],
                 r.area_error_percent_median[1]
             );

@@ -45,6 +45,19 @@ impl Rect {
     pub fn area(&self) -> u64 {
         self.width as u64 * self.height as u64
     }
+    /// The overlap of two rectangles (empty: zero area).
+    pub fn intersection(&self, o: &Rect) -> Rect {
+        let x0 = self.x0.max(o.x0);
+        let y0 = self.y0.max(o.y0);
+        let x1 = (self.x0 + self.width).min(o.x0 + o.width);
+        let y1 = (self.y0 + self.height).min(o.y0 + o.height);
+        Rect {
+            x0,
+            y0,
+            width: x1.saturating_sub(x0),
+            height: y1.saturating_sub(y0),
+        }
+    }
     pub fn union(&self, o: &Rect) -> Rect {
         if self.area() == 0 {
             return *o;
@@ -74,6 +87,23 @@ pub struct Target {
 }
 
 impl Target {
+    /// Copy `from`'s pixels inside this target's rectangle (a target just reset, drawn next).
+    pub fn copy_from(&mut self, from: &Target) {
+        let (Some(to), Some(src)) = (self.rect, from.rect) else {
+            return;
+        };
+        let r = to.intersection(&src);
+        let w = r.width as usize;
+        for y in r.y0..r.y0 + r.height {
+            let at = |rect: &Rect| {
+                (y - rect.y0) as usize * rect.width as usize + (r.x0 - rect.x0) as usize
+            };
+            let (i, j) = (at(&to), at(&src));
+            self.inv_depth[i..i + w].copy_from_slice(&from.inv_depth[j..j + w]);
+            self.class[i..i + w].copy_from_slice(&from.class[j..j + w]);
+        }
+    }
+
     /// Reset to an empty target over `rect`, reusing the allocation.
     pub fn reset(&mut self, rect: Rect) {
         let n = rect.area() as usize;
