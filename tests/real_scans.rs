@@ -5,7 +5,8 @@ mod common;
 
 use common::scan_dir;
 use jawtrack::capture::mesh::{BoiMarking, mark_boi, write_obj};
-use jawtrack::capture::{BoiSource, Capture, Mesh};
+use jawtrack::capture::{BoiSource, Capture, Mesh, OpenOptions};
+use jawtrack::energy::raster::render_labels;
 use jawtrack::synth::{Preset, SynthOptions, generate};
 
 #[test]
@@ -43,7 +44,7 @@ fn simplification_keeps_the_boi_and_the_vertex_numbering() {
     let Some(dir) = scan_dir() else { return };
     let mut m = Mesh::load(&dir.join("upper.obj"), BoiSource::None).unwrap();
     mark_boi(&mut m, &BoiMarking::for_arch(true));
-    let s = m.simplified(8000);
+    let s = m.simplified(jawtrack::capture::Simplify::MaxTriangles(8000));
     assert!(
         s.triangles.len() <= 8000 && s.triangles.len() > 4000,
         "{}",
@@ -84,7 +85,51 @@ fn a_synthetic_capture_on_the_real_scans_loads_back() {
             .all(|c| c.mean_mask_pixels[0] > 100.0 && c.mean_mask_pixels[1] > 100.0),
         "{report:?}"
     );
+    let full = Capture::open_with(
+        &out,
+        OpenOptions {
+            simplify_mm: 0.0,
+            ..OpenOptions::default()
+        },
+    )
+    .unwrap();
+    assert_eq!(full.upper.triangles.len(), report.triangles[0]);
+    assert!(full.upper.boi_face_count() > 1000);
+    // By default the arches are simplified within 0.02 mm: far fewer triangles, and the
+    // same picture to within a few edge pixels of the masks' resolution.
     let c = Capture::open(&out).unwrap();
-    assert_eq!(c.upper.triangles.len(), report.triangles[0]);
-    assert!(c.upper.boi_face_count() > 1000);
+    for (name, a, b) in [
+        ("upper", &full.upper, &c.upper),
+        ("lower", &full.lower, &c.lower),
+    ] {
+        assert!(
+            b.triangles.len() < a.triangles.len() / 2,
+            "{name}: {} of {} triangles kept",
+            b.triangles.len(),
+            a.triangles.len()
+        );
+        assert!(b.boi_face_count() > 200, "{name}");
+    }
+    let poses = c.gt_poses(2).unwrap();
+    let scene = jawtrack::energy::Scene::from_capture(&c);
+    for cam in scene.cameras.iter().flatten() {
+        let draw = |capture: &Capture| {
+            render_labels(
+                cam,
+                &[
+                    (&capture.upper, &poses.upper, 1, 2),
+                    (&capture.lower, &poses.lower, 3, 4),
+                ],
+            )
+        };
+        let (a, b) = (draw(&full), draw(&c));
+        let drawn = a.iter().filter(|&&v| v != 0).count();
+        let differ = a.iter().zip(&b).filter(|(x, y)| x != y).count();
+        assert!(drawn > 1000, "{}: {drawn} model pixels", cam.name);
+        assert!(
+            (differ as f64) < 0.002 * drawn as f64,
+            "{}: {differ} of {drawn} pixels differ",
+            cam.name
+        );
+    }
 }

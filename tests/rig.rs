@@ -25,6 +25,7 @@ fn fixture() -> &'static Fixture {
         let out = dir.path().join("m");
         let opts = SynthOptions {
             frames: 170,
+            frames_per_segment: 10,
             seed: 3,
             no_masks: true,
             ..Default::default()
@@ -266,6 +267,7 @@ fn full_adaptation_to_another_joint_beats_reduced() {
     let out = dir.path().join("b");
     let opts = SynthOptions {
         frames: 170,
+        frames_per_segment: 10,
         seed: 3,
         no_masks: true,
         joint: jawtrack::synth::Joint::Variant,

@@ -18,7 +18,7 @@ use json::{
     ArchInitJson, BoiJson, CameraJson, CaptureJson, InitJson, TracksJson, check_finite, read_json,
 };
 pub use masks::{LOWER_BIT, LabelMask, MaskMode, UPPER_BIT};
-pub use mesh::{BoiSource, Mesh};
+pub use mesh::{BoiSource, Mesh, Simplify};
 pub use write::{write_atomic, write_json_atomic};
 
 /// The two arches.
@@ -149,10 +149,27 @@ pub struct FrameMasks {
 }
 
 /// Options for opening a capture.
-#[derive(Debug, Clone, Copy, Default)]
+#[derive(Debug, Clone, Copy)]
 pub struct OpenOptions {
-    /// Simplify each arch to at most this many triangles at load.
+    /// Simplify each arch to at most this many triangles at load (before `simplify_mm`).
     pub max_triangles: Option<usize>,
+    /// Otherwise simplify each arch as far as its surface stays within this distance (mm) of
+    /// the scan's; 0 keeps every triangle. See [`DEFAULT_SIMPLIFY_MM`].
+    pub simplify_mm: f64,
+}
+
+/// The default simplification bound: 0.02 mm, about a twentieth of a pixel of a GoPro's
+/// half-resolution mask at 20 cm (0.4 mm a pixel). A 85k-triangle scan keeps about 23k
+/// triangles, a 4x cheaper energy; a silhouette cannot tell the difference.
+pub const DEFAULT_SIMPLIFY_MM: f64 = 0.02;
+
+impl Default for OpenOptions {
+    fn default() -> Self {
+        OpenOptions {
+            max_triangles: None,
+            simplify_mm: DEFAULT_SIMPLIFY_MM,
+        }
+    }
 }
 
 impl Capture {
@@ -288,8 +305,8 @@ impl Capture {
             };
             let mesh = Mesh::load(&path, source)?;
             Ok(match options.max_triangles {
-                Some(n) => mesh.simplified(n),
-                None => mesh,
+                Some(n) => mesh.simplified(Simplify::MaxTriangles(n)),
+                None => mesh.simplified(Simplify::MaxErrorMm(options.simplify_mm)),
             })
         };
         let upper = load_mesh(&cj.meshes.upper, &upper_boi)?;

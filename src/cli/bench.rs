@@ -97,14 +97,28 @@ fn time(engine: &dyn EnergyEngine, batch: &[ArchPoses], seconds: f64) -> anyhow:
 
 fn energy(a: EnergyArgs) -> anyhow::Result<()> {
     let tmp = tempfile::tempdir()?;
-    let mut cases: Vec<(String, Option<&Path>, Option<usize>)> =
-        vec![("procedural".into(), None, None)];
+    // (name, scan folder, how the arches are simplified at load)
+    let full = OpenOptions {
+        max_triangles: None,
+        simplify_mm: 0.0,
+    };
+    let mut cases: Vec<(String, Option<&Path>, OpenOptions)> =
+        vec![("procedural".into(), None, full)];
     if a.scans.join("upper.obj").exists() {
-        cases.push(("scan-tag0".into(), Some(a.scans.as_path()), None));
+        let scans = Some(a.scans.as_path());
+        cases.push(("scan-tag0".into(), scans, full));
+        cases.push((
+            format!("scan-tag0 {} mm", jawtrack::capture::DEFAULT_SIMPLIFY_MM),
+            scans,
+            OpenOptions::default(),
+        ));
         cases.push((
             "scan-tag0 simplified".to_string(),
-            Some(a.scans.as_path()),
-            Some(a.simplified),
+            scans,
+            OpenOptions {
+                max_triangles: Some(a.simplified),
+                ..full
+            },
         ));
     } else {
         eprintln!("no scans at {}: procedural arch only", a.scans.display());
@@ -114,7 +128,7 @@ fn energy(a: EnergyArgs) -> anyhow::Result<()> {
         adapter: None,
         rows: Vec::new(),
     };
-    for (name, meshes, max_triangles) in cases {
+    for (name, meshes, open) in cases {
         let dir = tmp.path().join(if meshes.is_some() {
             "scan"
         } else {
@@ -129,7 +143,7 @@ fn energy(a: EnergyArgs) -> anyhow::Result<()> {
             };
             generate(&dir, &opts, &|| {}).context("synthesising the benchmark capture")?;
         }
-        let capture = Capture::open_with(&dir, OpenOptions { max_triangles })?;
+        let capture = Capture::open_with(&dir, open)?;
         let masks = capture.load_masks(3)?;
         let truth = capture
             .gt_poses(3)
@@ -241,6 +255,14 @@ pub struct TrackArgs {
     /// The synthetic subject's joint (the tracker's jaw prior assumes an average one).
     #[arg(long, value_enum, default_value_t = jawtrack::synth::Joint::Average)]
     joint: jawtrack::synth::Joint,
+    /// The movements' pace (see `synth --frames-per-segment`); 4 is the pace this bench's
+    /// 34-frame captures had before the option (the exercise's core squeezed into them).
+    #[arg(long, default_value_t = jawtrack::synth::tmj::FRAMES_PER_SEGMENT)]
+    frames_per_segment: u32,
+    /// A folder with upper.* and lower.* to use instead of procedural arches (e.g. the real
+    /// scans, ../shared/data/scan-tag0).
+    #[arg(long)]
+    meshes: Option<PathBuf>,
     /// Tracking settings (JSON, fields of TrackSettings), e.g. to turn the jaw prior off.
     #[arg(long)]
     settings: Option<PathBuf>,
@@ -276,7 +298,8 @@ fn objective_sum(engine: &dyn EnergyEngine, poses: &ArchPoses) -> anyhow::Result
     let s = jawtrack::track::SearchSettings::default();
     let mut sum = 0.0;
     for arch in Arch::BOTH {
-        sum += engine.evaluate(arch, std::slice::from_ref(poses))?[0].objective(s.lambda, s.cross_weight);
+        sum += engine.evaluate(arch, std::slice::from_ref(poses))?[0]
+            .objective(s.lambda, s.cross_weight);
     }
     Ok(sum)
 }
@@ -335,6 +358,8 @@ pub fn track(a: TrackArgs) -> anyhow::Result<()> {
                 preset: *preset,
                 masks: a.masks,
                 joint: a.joint,
+                frames_per_segment: a.frames_per_segment,
+                meshes: a.meshes.clone(),
                 ..SynthOptions::default()
             };
             generate(&dir, &opts, &|| {}).context("synthesising")?;
@@ -348,7 +373,7 @@ pub fn track(a: TrackArgs) -> anyhow::Result<()> {
                 overlays: None,
                 resume: false,
                 force: true,
-                max_triangles: None,
+                meshes: Default::default(),
                 settings: a.settings.clone(),
             };
             let summary = super::track::track(&capture, &args)?;
@@ -378,7 +403,10 @@ pub fn track(a: TrackArgs) -> anyhow::Result<()> {
                 engine.set_frame(&masks)?;
                 let f = floor_poses(&capture, engine.as_ref(), &truth, *frame)?;
                 let t = tracked[frame];
-                let (et, ef) = (objective_sum(engine.as_ref(), &t)?, objective_sum(engine.as_ref(), &f)?);
+                let (et, ef) = (
+                    objective_sum(engine.as_ref(), &t)?,
+                    objective_sum(engine.as_ref(), &f)?,
+                );
                 if et > ef + 0.5 {
                     shortfall += 1;
                 }

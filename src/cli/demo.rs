@@ -41,6 +41,9 @@ pub fn run(a: Args) -> anyhow::Result<()> {
         force,
         no_masks: false,
         joint: Default::default(),
+        // The exercise's core (open, left, right, protrude) squeezed into 48 frames, 6 a
+        // movement, faster than people move: the rig learnt at the end sees the whole range.
+        frames_per_segment: 6,
     };
     println!(
         "== 1. synthesise a {:?} capture: three cameras, half-resolution masks",
@@ -71,7 +74,7 @@ pub fn run(a: Args) -> anyhow::Result<()> {
         overlays: Some(overlays.clone()),
         resume: false,
         force: true,
-        max_triangles: None,
+        meshes: Default::default(),
         settings: None,
     };
     let summary = super::track::track(&capture, &args)?;

@@ -22,11 +22,41 @@ pub struct Args {
     /// Weight of the boundary term.
     #[arg(long, default_value_t = DEFAULT_LAMBDA)]
     pub lambda: f64,
-    /// Simplify each arch to at most this many triangles at load.
-    #[arg(long)]
-    pub max_triangles: Option<usize>,
+    #[command(flatten)]
+    pub meshes: MeshArgs,
     #[command(flatten)]
     pub engine: EngineArgs,
+}
+
+/// How the arches are simplified at load (shared by the commands that evaluate energies).
+#[derive(clap::Args, Clone, Copy)]
+pub struct MeshArgs {
+    /// Simplify each arch to at most this many triangles at load (instead of --simplify-mm).
+    #[arg(long)]
+    pub max_triangles: Option<usize>,
+    /// Simplify each arch as far as its surface stays within this distance (mm) of the
+    /// scan's; 0 keeps every triangle (a silhouette needs far fewer than a scan has).
+    #[arg(long, default_value_t = jawtrack::capture::DEFAULT_SIMPLIFY_MM)]
+    pub simplify_mm: f64,
+}
+
+impl MeshArgs {
+    pub fn open_options(&self) -> OpenOptions {
+        OpenOptions {
+            max_triangles: self.max_triangles,
+            simplify_mm: self.simplify_mm,
+        }
+    }
+}
+
+impl Default for MeshArgs {
+    fn default() -> Self {
+        let o = OpenOptions::default();
+        MeshArgs {
+            max_triangles: o.max_triangles,
+            simplify_mm: o.simplify_mm,
+        }
+    }
 }
 
 /// How energies are evaluated (shared by every command that evaluates them).
@@ -42,13 +72,8 @@ pub struct EngineArgs {
 }
 
 pub fn run(a: Args) -> anyhow::Result<()> {
-    let capture = Capture::open_with(
-        &a.capture,
-        OpenOptions {
-            max_triangles: a.max_triangles,
-        },
-    )
-    .with_context(|| format!("invalid capture {}", a.capture.display()))?;
+    let capture = Capture::open_with(&a.capture, a.meshes.open_options())
+        .with_context(|| format!("invalid capture {}", a.capture.display()))?;
     if !capture.frames().contains(&a.frame) {
         return Err(anyhow!(
             "--frame {}: the capture has frames {}..{}",

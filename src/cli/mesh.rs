@@ -72,7 +72,7 @@ fn boi(a: BoiArgs) -> anyhow::Result<()> {
         );
     }
     if let Some(max) = a.max_triangles {
-        mesh = mesh.simplified(max);
+        mesh = mesh.simplified(jawtrack::capture::Simplify::MaxTriangles(max));
     }
     write_obj(&mesh, &a.output).context("writing the mesh")?;
     println!(

@@ -33,6 +33,10 @@ pub struct Args {
     /// The subject's temporomandibular joint.
     #[arg(long, value_enum, default_value_t = Joint::Average)]
     pub joint: Joint,
+    /// The movements' pace: frames each segment of the exercise (e.g. rest to wide open)
+    /// takes at least; 20 (0.83 s at the synthetic 24 fps) is an unhurried human pace.
+    #[arg(long, default_value_t = jawtrack::synth::tmj::FRAMES_PER_SEGMENT)]
+    pub frames_per_segment: u32,
     /// Print the report as JSON.
     #[arg(long)]
     pub json: bool,
@@ -48,6 +52,7 @@ pub fn run(a: Args) -> anyhow::Result<()> {
         force: a.force,
         no_masks: a.no_masks,
         joint: a.joint,
+        frames_per_segment: a.frames_per_segment,
     };
     let report = generate(&a.out, &opts)?;
     if a.json {

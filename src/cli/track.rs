@@ -3,7 +3,7 @@ use std::time::Instant;
 
 use anyhow::{Context, bail};
 use jawtrack::capture::json::FrameRecordJson;
-use jawtrack::capture::{ArchPoses, Capture, OpenOptions};
+use jawtrack::capture::{ArchPoses, Capture};
 use jawtrack::energy::{Scene, open_engine};
 use jawtrack::track::output::{TracksWriter, record_poses};
 use jawtrack::track::score::{ScoreReport, Stats, score};
@@ -31,10 +31,8 @@ pub struct Args {
     /// Start over when the output exists.
     #[arg(long)]
     pub force: bool,
-    /// Simplify each arch to at most this many triangles at load (a silhouette needs far fewer
-    /// than a scan has; vertex numbers are kept).
-    #[arg(long)]
-    pub max_triangles: Option<usize>,
+    #[command(flatten)]
+    pub meshes: super::energy::MeshArgs,
     /// Tracking settings as JSON (the fields of `TrackSettings`; see README), instead of the
     /// defaults.
     #[arg(long)]
@@ -81,13 +79,8 @@ fn parse_range(s: &str, capture: &Capture) -> anyhow::Result<std::ops::Range<u32
 }
 
 pub fn run(a: Args) -> anyhow::Result<()> {
-    let capture = Capture::open_with(
-        &a.capture,
-        OpenOptions {
-            max_triangles: a.max_triangles,
-        },
-    )
-    .with_context(|| format!("invalid capture {}", a.capture.display()))?;
+    let capture = Capture::open_with(&a.capture, a.meshes.open_options())
+        .with_context(|| format!("invalid capture {}", a.capture.display()))?;
     let summary = track(&capture, &a)?;
     print_summary(&a.output, &summary);
     if let Some(report) = score_records(&capture, &a.output, &summary.records)? {

@@ -68,7 +68,10 @@ impl CpuEnergy {
     /// The other arch drawn at `pose`, from the cache when it was drawn there last.
     fn other_arch(&self, arch: Arch, pose: &Pose) -> Arc<OtherArch> {
         let mut cached = self.other.lock().unwrap_or_else(|e| e.into_inner());
-        if let Some(c) = cached.as_ref().filter(|c| c.arch == arch && c.pose == *pose) {
+        if let Some(c) = cached
+            .as_ref()
+            .filter(|c| c.arch == arch && c.pose == *pose)
+        {
             return c.clone();
         }
         let mesh = self.scene.mesh(arch);

@@ -82,6 +82,12 @@ pub struct SynthOptions {
     /// the motion; every frame of such a capture is `no-data` to the tracker).
     pub no_masks: bool,
     pub joint: Joint,
+    /// Frames each segment of the exercise (e.g. rest to wide open) takes at least: the
+    /// movements' pace. 20 frames is 0.83 s a movement at the synthetic 24 fps (incisors up
+    /// to ~3.5 mm a frame, 85 mm/s), an unhurried human pace. A capture shorter than the
+    /// exercise at this pace plays its beginning; a longer one spreads the whole exercise
+    /// over it.
+    pub frames_per_segment: u32,
 }
 
 impl Default for SynthOptions {
@@ -95,6 +101,7 @@ impl Default for SynthOptions {
             force: false,
             no_masks: false,
             joint: Joint::Average,
+            frames_per_segment: tmj::FRAMES_PER_SEGMENT,
         }
     }
 }
@@ -243,12 +250,10 @@ impl Session {
         } else {
             0.0
         };
+        // `hard` moves twice as fast.
         let repeats = if opts.preset == Preset::Hard { 2 } else { 1 };
-        let segments = if opts.frames >= tmj::FULL_EXERCISE_FRAMES {
-            tmj::ALL_SEGMENTS
-        } else {
-            tmj::CORE_SEGMENTS
-        };
+        let segments = (opts.frames as f64 / opts.frames_per_segment.max(1) as f64)
+            .min(tmj::ALL_SEGMENTS as f64);
         exercise_controls(tau, segments, repeats, &self.gain)
     }
 

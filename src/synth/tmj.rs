@@ -189,19 +189,18 @@ const EXERCISE: [(f64, f64, f64); 18] = [
 /// Segments of the core exercise, and of the whole one.
 pub const CORE_SEGMENTS: usize = 8;
 pub const ALL_SEGMENTS: usize = EXERCISE.len() - 1;
-/// Captures at least this long play the whole exercise (10 frames a segment); shorter ones
-/// play the core, so that no segment is faster than the movements people make.
-pub const FULL_EXERCISE_FRAMES: u32 = 170;
+/// The default pace: frames a segment takes at least (see `SynthOptions::frames_per_segment`).
+pub const FRAMES_PER_SEGMENT: u32 = 20;
 
-/// Controls at time `tau` in [0, 1] over the capture, playing the first `segments` segments of
-/// the exercise `repeats` times. `gain` scales each control's amplitude per subject (e.g.
-/// 0.95..1.0 so that seeds differ).
-pub fn exercise_controls(tau: f64, segments: usize, repeats: u32, gain: &[f64; 3]) -> JawControls {
-    let keys = segments.clamp(1, ALL_SEGMENTS);
+/// Controls at time `tau` in [0, 1] over the capture, playing the first `segments` segments
+/// (a fraction ends within one; at most the whole exercise) `repeats` times. `gain` scales
+/// each control's amplitude per subject (e.g. 0.95..1.0 so that seeds differ).
+pub fn exercise_controls(tau: f64, segments: f64, repeats: u32, gain: &[f64; 3]) -> JawControls {
+    let keys = segments.clamp(0.0, ALL_SEGMENTS as f64);
     let x =
         (tau.clamp(0.0, 1.0) * repeats.max(1) as f64).fract() + if tau >= 1.0 { 1.0 } else { 0.0 };
-    let pos = (x * keys as f64).min(keys as f64);
-    let i = (pos.floor() as usize).min(keys - 1);
+    let pos = (x * keys).min(keys);
+    let i = (pos.floor() as usize).min(ALL_SEGMENTS - 1);
     let f = pos - i as f64;
     let ease = 0.5 - 0.5 * (std::f64::consts::PI * f).cos();
     let (a, b) = (EXERCISE[i], EXERCISE[i + 1]);
@@ -291,23 +290,23 @@ mod tests {
         let g = [1.0; 3];
         for segments in [CORE_SEGMENTS, ALL_SEGMENTS] {
             assert_eq!(
-                exercise_controls(0.0, segments, 1, &g),
+                exercise_controls(0.0, segments as f64, 1, &g),
                 JawControls::default()
             );
             assert_eq!(
-                exercise_controls(1.0, segments, 1, &g),
+                exercise_controls(1.0, segments as f64, 1, &g),
                 JawControls::default()
             );
         }
         // The core reaches the whole range: wide open, both sides, protrusion.
         let core: Vec<JawControls> = (0..=800)
-            .map(|k| exercise_controls(k as f64 / 800.0, CORE_SEGMENTS, 1, &g))
+            .map(|k| exercise_controls(k as f64 / 800.0, CORE_SEGMENTS as f64, 1, &g))
             .collect();
         assert!(core.iter().any(|c| c.open > 0.99) && core.iter().any(|c| c.protrusion > 0.99));
         assert!(core.iter().any(|c| c.lateral > 0.99) && core.iter().any(|c| c.lateral < -0.99));
-        let mut prev = exercise_controls(0.0, ALL_SEGMENTS, 1, &g);
+        let mut prev = exercise_controls(0.0, ALL_SEGMENTS as f64, 1, &g);
         for k in 1..=2000 {
-            let c = exercise_controls(k as f64 / 2000.0, ALL_SEGMENTS, 1, &g);
+            let c = exercise_controls(k as f64 / 2000.0, ALL_SEGMENTS as f64, 1, &g);
             assert!((c.open - prev.open).abs() < 0.03 && (c.lateral - prev.lateral).abs() < 0.05);
             prev = c;
         }

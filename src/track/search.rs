@@ -87,6 +87,7 @@ struct Objective<'a> {
     arch: Arch,
     context: ArchPoses,
     start: Pose,
+    /// The arch's centre in world: rotations turn about it.
     centre: Vector3<f64>,
     lambda: f64,
     cross_weight: f64,
@@ -135,6 +136,9 @@ impl SearchSettings {
         }
     }
 }
+
+/// About an arch's radius: turns a rotation (rad) into a displacement (mm).
+pub const RADIUS_MM: f64 = 30.0;
 
 const GOLDEN: f64 = 0.618_033_988_749_894_9;
 

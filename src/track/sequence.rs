@@ -9,7 +9,7 @@ use std::time::Instant;
 
 use nalgebra::Vector3;
 
-use super::search::{SearchSettings, search};
+use super::search::{RADIUS_MM, SearchSettings, search};
 use crate::capture::{Arch, ArchPoses, Capture, FrameMasks, MaskMode};
 use crate::energy::{Energy, EnergyEngine};
 use crate::error::Result;
@@ -39,6 +39,14 @@ pub struct TrackSettings {
     /// the energy picks among them and the usual starts. Per-arch masks only. [0, 0, 0] turns
     /// it off.
     pub jaw_prior_grid: [usize; 3],
+    /// And the `jaw_prior_nearest` poses of a finer grid (`jaw_prior_fine_grid`) nearest to the
+    /// frame's starts.
+    pub jaw_prior_fine_grid: [usize; 3],
+    pub jaw_prior_nearest: usize,
+    /// Each arch is searched from this many of its best starts (at least 1 mm apart) and
+    /// keeps the best result: the energy has many shallow minima, and the best start is not
+    /// always in the deepest one's basin.
+    pub restarts: usize,
 }
 
 impl Default for TrackSettings {
@@ -53,6 +61,9 @@ impl Default for TrackSettings {
             low_confidence_ratio: 2.5,
             confidence_window: 15,
             jaw_prior_grid: [7, 5, 3],
+            jaw_prior_fine_grid: [31, 11, 6],
+            jaw_prior_nearest: 60,
+            restarts: 1,
         }
     }
 }
@@ -139,8 +150,13 @@ pub fn track_frames(
     // With combined masks a lower-arch candidate can win by covering the upper arch's pixels
     // (measured: jaw median 5.98 → 7.13 mm with the prior), so the prior is for per-arch masks.
     let prior = match capture.mask_mode {
-        MaskMode::PerArch { .. } => jaw_prior(capture, settings.jaw_prior_grid),
-        MaskMode::Combined => Vec::new(),
+        MaskMode::PerArch { .. } => JawPrior {
+            coarse: jaw_prior(capture, settings.jaw_prior_grid),
+            fine: jaw_prior(capture, settings.jaw_prior_fine_grid),
+            nearest: settings.jaw_prior_nearest,
+            centre: centres[1],
+        },
+        MaskMode::Combined => JawPrior::default(),
     };
     std::thread::scope(|scope| {
         let (tx, rx) = sync_channel::<(u32, Result<FrameMasks>)>(2);
@@ -166,6 +182,42 @@ pub fn track_frames(
         }
         Ok(())
     })
+}
+
+/// The jaw prior's candidates: a coarse grid over the whole range, and the poses of a fine
+/// grid nearest to the frame's starts (fast movements outrun the search; the coarse grid's
+/// steps are too far apart to land close).
+#[derive(Default)]
+struct JawPrior {
+    coarse: Vec<Pose>,
+    fine: Vec<Pose>,
+    nearest: usize,
+    /// The lower arch's centre (model frame): where distances between jaw poses are taken.
+    centre: Vector3<f64>,
+}
+
+impl JawPrior {
+    /// Jaw poses (upper_from_lower) to try, given the jaw poses the frame starts from.
+    fn candidates(&self, starts: &[Pose]) -> Vec<Pose> {
+        let distance = |j: &Pose| {
+            starts
+                .iter()
+                .map(|s| {
+                    let (r, _) = s.distance_to(j);
+                    (s.transform_point(&self.centre) - j.transform_point(&self.centre)).norm()
+                        + r * RADIUS_MM
+                })
+                .fold(f64::INFINITY, f64::min)
+        };
+        let mut fine: Vec<(f64, &Pose)> = self.fine.iter().map(|j| (distance(j), j)).collect();
+        let n = self.nearest.min(fine.len());
+        if n > 0 && n < fine.len() {
+            fine.select_nth_unstable_by(n, |a, b| a.0.total_cmp(&b.0));
+        }
+        let mut out = self.coarse.clone();
+        out.extend(fine[..n].iter().map(|(_, j)| **j));
+        out
+    }
 }
 
 /// Jaw poses (upper_from_lower) over a grid of an average joint's controls, the joint placed
@@ -210,7 +262,7 @@ fn track_frame(
     engine: &mut dyn EnergyEngine,
     settings: &TrackSettings,
     centres: &[Vector3<f64>; 2],
-    prior: &[Pose],
+    prior: &JawPrior,
     frame: u32,
     masks: &FrameMasks,
     state: &mut TrackState,
@@ -242,28 +294,6 @@ fn track_frame(
     }
     starts.extend(state.since_good);
     let mut poses = state.last;
-    if starts.len() > 1 || !prior.is_empty() {
-        for arch in Arch::BOTH {
-            let mut options: Vec<ArchPoses> = starts
-                .iter()
-                .map(|s| poses.with(arch, *s.get(arch)))
-                .collect();
-            if arch == Arch::Lower {
-                // The jaw prior, on the upper arch as just chosen.
-                options.extend(
-                    prior
-                        .iter()
-                        .map(|j| poses.with(arch, poses.upper.compose(j))),
-                );
-            }
-            let e = engine.evaluate(arch, &options)?;
-            evaluations += options.len();
-            let best = (0..e.len())
-                .min_by(|&i, &j| objective(&e[i]).total_cmp(&objective(&e[j])))
-                .expect("starts");
-            poses = options[best];
-        }
-    }
     let passes = match capture.mask_mode {
         MaskMode::PerArch { .. } => settings.per_arch_passes,
         MaskMode::Combined => settings.combined_passes,
@@ -271,20 +301,56 @@ fn track_frame(
     for pass in 0..passes.max(1) {
         let mut moved: f64 = 0.0;
         for arch in Arch::BOTH {
-            let seed = (frame as u64) << 8 | (pass as u64) << 1 | (arch == Arch::Lower) as u64;
-            let found = search(
-                &*engine,
-                arch,
-                &poses,
-                *poses.get(arch),
-                &centres[(arch == Arch::Lower) as usize],
-                &settings.search,
-                seed,
-            )?;
-            evaluations += found.evaluations;
-            let (r, t) = poses.get(arch).distance_to(&found.pose);
-            moved = moved.max(t + r * 30.0); // 30 mm: about an arch's radius
-            poses = poses.with(arch, found.pose);
+            // The first pass picks the starts that fit this frame best (the jaw prior placed
+            // on the upper arch as just found); later passes go on from where the last ended.
+            let mut options: Vec<ArchPoses> = vec![poses];
+            if pass == 0 {
+                options = starts
+                    .iter()
+                    .map(|s| poses.with(arch, *s.get(arch)))
+                    .collect();
+                if arch == Arch::Lower {
+                    let jaws: Vec<Pose> = starts.iter().map(ArchPoses::jaw).collect();
+                    options.extend(
+                        prior
+                            .candidates(&jaws)
+                            .iter()
+                            .map(|j| poses.with(arch, poses.upper.compose(j))),
+                    );
+                }
+            }
+            let chosen = if options.len() > 1 {
+                let e = engine.evaluate(arch, &options)?;
+                evaluations += options.len();
+                let scores: Vec<f64> = e.iter().map(objective).collect();
+                best_distinct(arch, &options, &scores, settings.restarts)
+            } else {
+                options
+            };
+            let mut best: Option<(f64, Pose)> = None;
+            for (k, start) in chosen.iter().enumerate() {
+                let seed = (frame as u64) << 12
+                    | (pass as u64) << 8
+                    | (k as u64) << 1
+                    | (arch == Arch::Lower) as u64;
+                let found = search(
+                    &*engine,
+                    arch,
+                    start,
+                    *start.get(arch),
+                    &centres[(arch == Arch::Lower) as usize],
+                    &settings.search,
+                    seed,
+                )?;
+                evaluations += found.evaluations;
+                if best.is_none_or(|(e, _)| found.total < e) {
+                    best = Some((found.total, found.pose));
+                }
+            }
+            let (_, found) = best.expect("a start");
+            let (r, t) = poses.get(arch).distance_to(&found);
+            moved = moved.max(t + r * RADIUS_MM);
+            poses = poses.with(arch, found);
         }
         if moved < settings.settle_mm {
             break;
@@ -331,4 +397,58 @@ fn track_frame(
         evaluations,
         seconds: 0.0,
     })
+}
+
+/// The best `k` options for `arch` by objective that lie apart from each other (more than
+/// 1 mm at an arch's radius): the starts a search runs from.
+fn best_distinct(arch: Arch, options: &[ArchPoses], scores: &[f64], k: usize) -> Vec<ArchPoses> {
+    let mut order: Vec<usize> = (0..options.len()).collect();
+    order.sort_by(|&i, &j| scores[i].total_cmp(&scores[j]));
+    let mut chosen: Vec<ArchPoses> = Vec::new();
+    for i in order {
+        let p = options[i].get(arch);
+        let apart = chosen.iter().all(|c| {
+            let (r, t) = c.get(arch).distance_to(p);
+            t + r * RADIUS_MM > 1.0
+        });
+        if apart {
+            chosen.push(options[i]);
+            if chosen.len() >= k.max(1) {
+                break;
+            }
+        }
+    }
+    chosen
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn restarts_take_the_best_starts_that_lie_apart() {
+        let at = |x: f64, turn: f64| ArchPoses {
+            upper: Pose::IDENTITY,
+            lower: Pose::from_euler_tuple(&[0.0, turn, 0.0, x, 0.0, 0.0]),
+        };
+        // Scores 1..6: the second is 0.5 mm from the first, the fourth turned 0.02 rad
+        // (0.6 mm at an arch's radius) from the third.
+        let options = [
+            at(0.0, 0.0),
+            at(0.5, 0.0),
+            at(3.0, 0.0),
+            at(3.0, 0.02),
+            at(-4.0, 0.0),
+            at(8.0, 0.0),
+        ];
+        let scores = [1.0, 2.0, 3.0, 4.0, 5.0, 6.0];
+        let picked = best_distinct(Arch::Lower, &options, &scores, 3);
+        assert_eq!(picked, vec![options[0], options[2], options[4]]);
+        assert_eq!(
+            best_distinct(Arch::Lower, &options, &scores, 1),
+            vec![options[0]]
+        );
+        // The upper arch's poses are all the same: one start.
+        assert_eq!(best_distinct(Arch::Upper, &options, &scores, 3).len(), 1);
+    }
 }

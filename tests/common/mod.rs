@@ -19,6 +19,8 @@ pub fn template(preset: Preset, masks: MaskKind) -> &'static Path {
         let dir = tempfile::tempdir().unwrap();
         let opts = SynthOptions {
             frames: 6,
+            // A segment of the exercise a frame: six different jaw poses.
+            frames_per_segment: 1,
             seed: 3,
             preset,
             masks,

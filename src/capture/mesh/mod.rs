@@ -5,6 +5,7 @@ mod boi;
 mod obj;
 mod ply;
 mod simplify;
+pub use simplify::Simplify;
 mod stl;
 
 use std::path::Path;
@@ -201,10 +202,10 @@ impl Mesh {
         }
     }
 
-    /// A copy with at most `max_triangles` triangles (meshoptimizer), keeping the file's
-    /// vertex numbering and the BOI: body and BOI are simplified apart with their borders locked.
-    pub fn simplified(&self, max_triangles: usize) -> Mesh {
-        simplify::simplify(self, max_triangles)
+    /// A simplified copy (meshoptimizer), keeping the file's vertex numbering and the BOI:
+    /// body and BOI are simplified apart with their borders locked.
+    pub fn simplified(&self, how: Simplify) -> Mesh {
+        simplify::simplify(self, how)
     }
 }
 
