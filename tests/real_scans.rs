@@ -127,7 +127,7 @@ fn a_synthetic_capture_on_the_real_scans_loads_back() {
         let differ = a.iter().zip(&b).filter(|(x, y)| x != y).count();
         assert!(drawn > 1000, "{}: {drawn} model pixels", cam.name);
         assert!(
-            (differ as f64) < 0.002 * drawn as f64,
+            (differ as f64) < 0.003 * drawn as f64,
             "{}: {differ} of {drawn} pixels differ",
             cam.name
         );
