@@ -426,6 +426,31 @@ mod tests {
     use super::*;
 
     #[test]
+    fn the_fine_prior_adds_the_poses_nearest_to_the_starts() {
+        let shift = |x: f64| Pose::from_translation(Vector3::new(x, 0.0, 0.0));
+        let prior = JawPrior {
+            coarse: vec![shift(100.0)],
+            fine: (0..20).map(|i| shift(i as f64)).collect(),
+            nearest: 3,
+            centre: Vector3::new(0.0, -10.0, 30.0),
+        };
+        // Starts at x = 4.2 and x = 15.9: the nearest three are 4, 16 and then 5 (0.8 mm).
+        let mut got: Vec<f64> = prior
+            .candidates(&[shift(4.2), shift(15.9)])
+            .iter()
+            .map(|p| p.translation.x)
+            .collect();
+        assert_eq!(got.remove(0), 100.0, "the coarse grid comes first");
+        got.sort_by(f64::total_cmp);
+        assert_eq!(got, vec![4.0, 5.0, 16.0]);
+        let none = JawPrior {
+            nearest: 0,
+            ..prior
+        };
+        assert_eq!(none.candidates(&[shift(4.2)]).len(), 1);
+    }
+
+    #[test]
     fn restarts_take_the_best_starts_that_lie_apart() {
         let at = |x: f64, turn: f64| ArchPoses {
             upper: Pose::IDENTITY,
