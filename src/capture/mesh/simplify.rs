@@ -55,6 +55,10 @@ pub(super) fn simplify(mesh: &Mesh, how: Simplify) -> Mesh {
             boi.push(class);
         }
     }
+    if triangles.len() == total {
+        // Nothing to take away: keep the file's face order (face lists refer to it).
+        return mesh.clone();
+    }
     Mesh {
         positions: mesh.positions.clone(),
         triangles,
