@@ -255,8 +255,8 @@ pub struct TrackArgs {
     /// The synthetic subject's joint (the tracker's jaw prior assumes an average one).
     #[arg(long, value_enum, default_value_t = jawtrack::synth::Joint::Average)]
     joint: jawtrack::synth::Joint,
-    /// The movements' pace (see `synth --frames-per-segment`); 4 is the pace this bench's
-    /// 34-frame captures had before the option (the exercise's core squeezed into them).
+    /// The movements' pace (see `synth --frames-per-segment`); 4 is about the pace this
+    /// bench's 34-frame captures had before the option (4.25: the exercise's core squeezed in).
     #[arg(long, default_value_t = jawtrack::synth::tmj::FRAMES_PER_SEGMENT)]
     frames_per_segment: u32,
     /// A folder with upper.* and lower.* to use instead of procedural arches (e.g. the real
