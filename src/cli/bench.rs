@@ -329,6 +329,7 @@ fn floor_poses(
             &poses,
             *poses.get(arch),
             &centre,
+            None,
             &fine,
             frame as u64,
         )?;

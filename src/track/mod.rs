@@ -1,7 +1,8 @@
 //! Tracking: the pose search per arch and frame (`search`), the frame loop around it
-//! (`sequence`), tracks.json as it is written (`output`), scoring against ground truth
+//! (`sequence`), the arches' non-penetration (`contact`), tracks.json as it is written (`output`), scoring against ground truth
 //! (`score`) and overlays (`overlay`).
 
+pub mod contact;
 pub mod output;
 pub mod overlay;
 pub mod score;

@@ -10,6 +10,7 @@
 use nalgebra::Vector3;
 use rand::{RngExt, SeedableRng};
 
+use super::contact::Contact;
 use crate::capture::{Arch, ArchPoses};
 use crate::energy::{Energy, EnergyEngine};
 use crate::error::Result;
@@ -76,7 +77,7 @@ impl Default for SearchSettings {
 pub struct Found {
     pub pose: Pose,
     pub energy: Energy,
-    /// The objective at `pose` (E plus the cross-label term).
+    /// The objective at `pose` (E plus the cross-label term and the contact penalty).
     pub total: f64,
     pub evaluations: usize,
 }
@@ -91,6 +92,7 @@ struct Objective<'a> {
     centre: Vector3<f64>,
     lambda: f64,
     cross_weight: f64,
+    contact: Option<&'a Contact>,
     evaluations: usize,
 }
 
@@ -103,22 +105,31 @@ impl Objective<'_> {
             .compose(&self.start)
     }
 
-    fn energies(&mut self, ds: &[[f64; 6]]) -> Result<Vec<Energy>> {
-        let candidates: Vec<ArchPoses> = ds
-            .iter()
+    fn candidates(&self, ds: &[[f64; 6]]) -> Vec<ArchPoses> {
+        ds.iter()
             .map(|d| self.context.with(self.arch, self.pose(d)))
-            .collect();
+            .collect()
+    }
+
+    fn penalty(&self, poses: &ArchPoses) -> f64 {
+        self.contact.map_or(0.0, |c| c.penalty(poses))
+    }
+
+    /// The objective and the energy of each candidate.
+    fn evaluate(&mut self, ds: &[[f64; 6]]) -> Result<Vec<(f64, Energy)>> {
+        let candidates = self.candidates(ds);
         self.evaluations += ds.len();
-        self.engine.evaluate(self.arch, &candidates)
+        let energies = self.engine.evaluate(self.arch, &candidates)?;
+        let (lambda, cross) = (self.lambda, self.cross_weight);
+        Ok(energies
+            .into_iter()
+            .zip(&candidates)
+            .map(|(e, c)| (e.objective(lambda, cross) + self.penalty(c), e))
+            .collect())
     }
 
     fn totals(&mut self, ds: &[[f64; 6]]) -> Result<Vec<f64>> {
-        let (lambda, cross) = (self.lambda, self.cross_weight);
-        Ok(self
-            .energies(ds)?
-            .iter()
-            .map(|e| e.objective(lambda, cross))
-            .collect())
+        Ok(self.evaluate(ds)?.into_iter().map(|(t, _)| t).collect())
     }
 }
 
@@ -143,13 +154,16 @@ pub const RADIUS_MM: f64 = 30.0;
 const GOLDEN: f64 = 0.618_033_988_749_894_9;
 
 /// Search the pose of `arch` from `start` (the other arch held at its pose in `context`).
-/// `centre` is the arch's centre in its model frame; `seed` makes the sampling repeatable.
+/// `centre` is the arch's centre in its model frame; `contact`, if given, adds its penalty to
+/// the objective; `seed` makes the sampling repeatable.
+#[allow(clippy::too_many_arguments)]
 pub fn search(
     engine: &dyn EnergyEngine,
     arch: Arch,
     context: &ArchPoses,
     start: Pose,
     centre: &Vector3<f64>,
+    contact: Option<&Contact>,
     s: &SearchSettings,
     seed: u64,
 ) -> Result<Found> {
@@ -161,6 +175,7 @@ pub fn search(
         centre: start.transform_point(centre),
         lambda: s.lambda,
         cross_weight: s.cross_weight,
+        contact,
         evaluations: 0,
     };
     let mut best = [0.0; 6];
@@ -198,10 +213,10 @@ pub fn search(
             }
         }
     }
-    let energy = obj.energies(&[best])?.remove(0);
+    let (total, energy) = obj.evaluate(&[best])?.remove(0);
     Ok(Found {
         pose: obj.pose(&best),
-        total: energy.objective(s.lambda, s.cross_weight),
+        total,
         energy,
         evaluations: obj.evaluations,
     })

@@ -9,6 +9,7 @@ use std::time::Instant;
 
 use nalgebra::Vector3;
 
+use super::contact::{Contact, ContactSettings};
 use super::search::{RADIUS_MM, SearchSettings, search};
 use crate::capture::{Arch, ArchPoses, Capture, FrameMasks, MaskMode};
 use crate::energy::{Energy, EnergyEngine};
@@ -47,6 +48,11 @@ pub struct TrackSettings {
     /// keeps the best result: the energy has many shallow minima, and the best start is not
     /// always in the deepest one's basin.
     pub restarts: usize,
+    /// The arches cannot pass through each other (`contact`): every candidate whose lower
+    /// crowns reach more than `contact_tolerance_mm` into the upper ones (along the occlusal
+    /// axis) costs `contact_weight` objective units (pixels) per mm beyond. 0 turns it off.
+    pub contact_weight: f64,
+    pub contact_tolerance_mm: f64,
 }
 
 impl Default for TrackSettings {
@@ -64,6 +70,8 @@ impl Default for TrackSettings {
             jaw_prior_fine_grid: [31, 11, 6],
             jaw_prior_nearest: 60,
             restarts: 1,
+            contact_weight: 100.0,
+            contact_tolerance_mm: 1.0,
         }
     }
 }
@@ -158,6 +166,18 @@ pub fn track_frames(
         },
         MaskMode::Combined => JawPrior::default(),
     };
+    // The side the lower arch is on comes from the poses tracking starts from.
+    let contact = (settings.contact_weight > 0.0).then(|| {
+        Contact::new(
+            &capture.upper,
+            &capture.lower,
+            &state.last.jaw(),
+            ContactSettings {
+                weight: settings.contact_weight,
+                tolerance_mm: settings.contact_tolerance_mm,
+            },
+        )
+    });
     std::thread::scope(|scope| {
         let (tx, rx) = sync_channel::<(u32, Result<FrameMasks>)>(2);
         let reader_frames = frames.clone();
@@ -172,7 +192,15 @@ pub fn track_frames(
             let started = Instant::now();
             let masks = masks?;
             let result = track_frame(
-                capture, engine, settings, &centres, &prior, frame, &masks, state,
+                capture,
+                engine,
+                settings,
+                &centres,
+                &prior,
+                contact.as_ref(),
+                frame,
+                &masks,
+                state,
             )?;
             let result = FrameResult {
                 seconds: started.elapsed().as_secs_f64(),
@@ -263,6 +291,7 @@ fn track_frame(
     settings: &TrackSettings,
     centres: &[Vector3<f64>; 2],
     prior: &JawPrior,
+    contact: Option<&Contact>,
     frame: u32,
     masks: &FrameMasks,
     state: &mut TrackState,
@@ -322,7 +351,11 @@ fn track_frame(
             let chosen = if options.len() > 1 {
                 let e = engine.evaluate(arch, &options)?;
                 evaluations += options.len();
-                let scores: Vec<f64> = e.iter().map(objective).collect();
+                let scores: Vec<f64> = e
+                    .iter()
+                    .zip(&options)
+                    .map(|(e, o)| objective(e) + contact.map_or(0.0, |c| c.penalty(o)))
+                    .collect();
                 best_distinct(arch, &options, &scores, settings.restarts)
             } else {
                 options
@@ -339,6 +372,7 @@ fn track_frame(
                     start,
                     *start.get(arch),
                     &centres[(arch == Arch::Lower) as usize],
+                    contact,
                     &settings.search,
                     seed,
                 )?;

@@ -1,0 +1,235 @@
+//! The arches cannot pass through each other. When the mouth closes, a lower arch turned a
+//! few degrees too far hides its incisors behind the upper ones and fits the masks about as
+//! well as the true pose (measured on a lateral excursion: the lost jaw reached 3-5 mm into
+//! the upper arch while the true poses never passed 0.7 mm), so the search adds a penalty
+//! for jaw poses that put the lower crowns into the upper ones.
+//!
+//! The test is a height map: along the occlusal axis (the upper arch's thinnest direction,
+//! pointing away from the lower arch), the lowest point of the upper arch in each 0.5 mm
+//! column; a lower-arch point above it has passed through. Depth is that overshoot for the
+//! deepest few points (a single stray vertex does not count).
+
+use nalgebra::{Matrix3, SymmetricEigen, Vector3};
+
+use crate::capture::{ArchPoses, Mesh};
+use crate::geometry::Pose;
+
+/// Column width of the height map (mm).
+const CELL_MM: f64 = 0.5;
+/// Lower-arch points tested per evaluation, at most (a stride through the vertices).
+const MAX_POINTS: usize = 4000;
+/// Depth is that of the `DEEPEST`-th deepest point.
+const DEEPEST: usize = 5;
+
+/// What the penalty costs: `weight` objective units (pixels) per mm of depth beyond
+/// `tolerance_mm`.
+#[derive(Debug, Clone, Copy)]
+pub struct ContactSettings {
+    pub weight: f64,
+    pub tolerance_mm: f64,
+}
+
+/// The upper arch's height map and the lower arch's test points, both in model frames.
+#[derive(Debug, Clone)]
+pub struct Contact {
+    /// Occlusal axis (unit, upper model frame, pointing away from the lower arch) and two
+    /// axes across it.
+    axis: Vector3<f64>,
+    across: [Vector3<f64>; 2],
+    /// Grid origin (in `across` coordinates) and size.
+    origin: [f64; 2],
+    size: [usize; 2],
+    /// Lowest height along `axis` per column; +inf where the upper arch has no point.
+    lowest: Vec<f64>,
+    points: Vec<Vector3<f64>>,
+    weight: f64,
+    tolerance_mm: f64,
+}
+
+impl Contact {
+    /// `jaw` (upper_from_lower) is any pose the capture shows, to tell which side of the upper
+    /// arch the lower one is on; the tolerance is raised to its depth plus 0.5 mm when that
+    /// is deeper (meshes that already overlap there, e.g. a scan's bite registration).
+    pub fn new(upper: &Mesh, lower: &Mesh, jaw: &Pose, settings: ContactSettings) -> Contact {
+        let to_f64 = |p: &[f32; 3]| Vector3::new(p[0] as f64, p[1] as f64, p[2] as f64);
+        let mean = |m: &Mesh| {
+            m.positions.iter().map(to_f64).sum::<Vector3<f64>>() / m.positions.len().max(1) as f64
+        };
+        let upper_mean = mean(upper);
+        let mut cov = Matrix3::zeros();
+        for p in &upper.positions {
+            let d = to_f64(p) - upper_mean;
+            cov += d * d.transpose();
+        }
+        let eigen = SymmetricEigen::new(cov);
+        let mut order = [0usize, 1, 2];
+        order.sort_by(|&a, &b| eigen.eigenvalues[a].total_cmp(&eigen.eigenvalues[b]));
+        let column = |i: usize| eigen.eigenvectors.column(i).into_owned();
+        let mut axis = column(order[0]);
+        if axis.dot(&(upper_mean - jaw.transform_point(&mean(lower)))) < 0.0 {
+            axis = -axis;
+        }
+        let across = [column(order[1]), column(order[2])];
+
+        let plane = |p: &Vector3<f64>| [p.dot(&across[0]), p.dot(&across[1])];
+        let mut lo = [f64::INFINITY; 2];
+        let mut hi = [f64::NEG_INFINITY; 2];
+        for p in &upper.positions {
+            let q = plane(&to_f64(p));
+            for k in 0..2 {
+                lo[k] = lo[k].min(q[k]);
+                hi[k] = hi[k].max(q[k]);
+            }
+        }
+        let size = if lo[0].is_finite() {
+            [0, 1].map(|k| ((hi[k] - lo[k]) / CELL_MM) as usize + 1)
+        } else {
+            [0, 0]
+        };
+        let mut contact = Contact {
+            axis,
+            across,
+            origin: lo,
+            size,
+            lowest: vec![f64::INFINITY; size[0] * size[1]],
+            points: Vec::new(),
+            weight: settings.weight,
+            tolerance_mm: settings.tolerance_mm,
+        };
+        for p in &upper.positions {
+            let p = to_f64(p);
+            if let Some(i) = contact.cell(&p) {
+                contact.lowest[i] = contact.lowest[i].min(p.dot(&axis));
+            }
+        }
+        let stride = lower.positions.len().div_ceil(MAX_POINTS).max(1);
+        contact.points = lower.positions.iter().step_by(stride).map(to_f64).collect();
+        let start = contact.depth(jaw);
+        if start + 0.5 > contact.tolerance_mm {
+            contact.tolerance_mm = start + 0.5;
+        }
+        contact
+    }
+
+    /// The column of a point in the upper model frame, if over the grid.
+    fn cell(&self, p: &Vector3<f64>) -> Option<usize> {
+        let mut index = [0usize; 2];
+        for k in 0..2 {
+            let c = ((p.dot(&self.across[k]) - self.origin[k]) / CELL_MM).floor();
+            if c < 0.0 || c >= self.size[k] as f64 {
+                return None;
+            }
+            index[k] = c as usize;
+        }
+        Some(index[0] * self.size[1] + index[1])
+    }
+
+    /// How far (mm) the lower arch reaches past the upper arch's surface at this jaw pose
+    /// (upper_from_lower); negative: that far apart.
+    pub fn depth(&self, jaw: &Pose) -> f64 {
+        let mut depths: Vec<f64> = self
+            .points
+            .iter()
+            .filter_map(|p| {
+                let q = jaw.transform_point(p);
+                let lowest = self.lowest[self.cell(&q)?];
+                lowest.is_finite().then(|| q.dot(&self.axis) - lowest)
+            })
+            .collect();
+        if depths.is_empty() {
+            return f64::NEG_INFINITY;
+        }
+        let k = DEEPEST.min(depths.len()) - 1;
+        let (_, kth, _) = depths.select_nth_unstable_by(k, |a, b| b.total_cmp(a));
+        *kth
+    }
+
+    /// The objective's penalty for these poses: `weight` per mm of depth past the tolerance.
+    pub fn penalty(&self, poses: &ArchPoses) -> f64 {
+        if self.weight == 0.0 {
+            return 0.0;
+        }
+        self.weight * (self.depth(&poses.jaw()) - self.tolerance_mm).max(0.0)
+    }
+
+    /// The tolerance in force (the setting, or more: see [`Contact::new`]).
+    pub fn tolerance_mm(&self) -> f64 {
+        self.tolerance_mm
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::synth::arches::{procedural_arch, rest_bite};
+
+    const SETTINGS: ContactSettings = ContactSettings {
+        weight: 100.0,
+        tolerance_mm: 1.0,
+    };
+
+    fn setup() -> (Contact, Pose) {
+        let (upper, lower) = (procedural_arch(true), procedural_arch(false));
+        let rest = rest_bite(&upper, &lower);
+        (Contact::new(&upper, &lower, &rest, SETTINGS), rest)
+    }
+
+    /// The jaw moved `mm` along the occlusal axis, towards the upper arch.
+    fn raised(contact: &Contact, rest: &Pose, mm: f64) -> Pose {
+        Pose::from_translation(contact.axis * mm).compose(rest)
+    }
+
+    #[test]
+    fn the_occlusal_axis_points_from_the_lower_arch_to_the_upper() {
+        // The procedural arches are built with y up (a 3 degree curve tilts the thinnest axis).
+        let (contact, _) = setup();
+        assert!(contact.axis.y > 0.99, "{:?}", contact.axis);
+    }
+
+    #[test]
+    fn depth_grows_as_the_lower_arch_rises_into_the_upper() {
+        let (contact, rest) = setup();
+        let at_rest = contact.depth(&rest);
+        // The rest bite interdigitates by 1 mm on a 1 mm grid; on 0.5 mm columns a little less.
+        assert!(at_rest > 0.0 && at_rest < 1.0, "{at_rest}");
+        for mm in [1.0, 2.5, 4.0, -6.0] {
+            let d = contact.depth(&raised(&contact, &rest, mm));
+            assert!((d - (at_rest + mm)).abs() < 1e-6, "{mm}: {d}");
+        }
+        // Beside the upper arch (no column above): nothing to pass through.
+        let aside = Pose::from_translation(Vector3::new(200.0, 0.0, 0.0)).compose(&rest);
+        assert_eq!(contact.depth(&aside), f64::NEG_INFINITY);
+    }
+
+    #[test]
+    fn the_penalty_starts_past_the_tolerance() {
+        let (contact, rest) = setup();
+        let poses = |jaw: Pose| ArchPoses {
+            upper: Pose::IDENTITY,
+            lower: jaw,
+        };
+        assert_eq!(contact.penalty(&poses(rest)), 0.0);
+        let at_rest = contact.depth(&rest);
+        let p = contact.penalty(&poses(raised(&contact, &rest, 3.0)));
+        assert!((p - 100.0 * (at_rest + 3.0 - 1.0)).abs() < 1e-6, "{p}");
+        // The jaw is what counts: both arches moved together change nothing.
+        let shift = Pose::from_translation(Vector3::new(5.0, -3.0, 2.0));
+        let moved = ArchPoses {
+            upper: shift,
+            lower: shift.compose(&raised(&contact, &rest, 3.0)),
+        };
+        assert!((contact.penalty(&moved) - p).abs() < 1e-6);
+    }
+
+    #[test]
+    fn a_start_deeper_than_the_tolerance_raises_it() {
+        let (upper, lower) = (procedural_arch(true), procedural_arch(false));
+        let (contact, rest) = setup();
+        let deep = raised(&contact, &rest, 2.0);
+        let from_deep = Contact::new(&upper, &lower, &deep, SETTINGS);
+        let d = from_deep.depth(&deep);
+        assert!(d > 2.0, "{d}");
+        assert!((from_deep.tolerance_mm() - (d + 0.5)).abs() < 1e-9);
+        assert_eq!(contact.tolerance_mm(), 1.0);
+    }
+}
