@@ -113,15 +113,11 @@ impl Contact {
 
     /// The column of a point in the upper model frame, if over the grid.
     fn cell(&self, p: &Vector3<f64>) -> Option<usize> {
-        let mut index = [0usize; 2];
-        for k in 0..2 {
+        let column = |k: usize| {
             let c = ((p.dot(&self.across[k]) - self.origin[k]) / CELL_MM).floor();
-            if c < 0.0 || c >= self.size[k] as f64 {
-                return None;
-            }
-            index[k] = c as usize;
-        }
-        Some(index[0] * self.size[1] + index[1])
+            (c >= 0.0 && c < self.size[k] as f64).then_some(c as usize)
+        };
+        Some(column(0)? * self.size[1] + column(1)?)
     }
 
     /// How far (mm) the lower arch reaches past the upper arch's surface at this jaw pose
