@@ -266,6 +266,9 @@ pub struct TrackArgs {
     /// Tracking settings (JSON, fields of TrackSettings), e.g. to turn the jaw prior off.
     #[arg(long)]
     settings: Option<PathBuf>,
+    /// How the meshes are simplified at load (for tracking, the floor and the score alike).
+    #[command(flatten)]
+    simplify: super::energy::MeshArgs,
     #[command(flatten)]
     engine: super::energy::EngineArgs,
 }
@@ -364,7 +367,7 @@ pub fn track(a: TrackArgs) -> anyhow::Result<()> {
                 ..SynthOptions::default()
             };
             generate(&dir, &opts, &|| {}).context("synthesising")?;
-            let capture = Capture::open(&dir)?;
+            let capture = Capture::open_with(&dir, a.simplify.open_options())?;
             let out = dir.join("tracks.json");
             let args = super::track::Args {
                 capture: dir.clone(),
@@ -374,7 +377,7 @@ pub fn track(a: TrackArgs) -> anyhow::Result<()> {
                 overlays: None,
                 resume: false,
                 force: true,
-                meshes: Default::default(),
+                meshes: a.simplify,
                 settings: a.settings.clone(),
             };
             let summary = super::track::track(&capture, &args)?;
