@@ -9,7 +9,7 @@
 //! column; a lower-arch point above it has passed through. Depth is that overshoot for the
 //! deepest few points (a single stray vertex does not count).
 
-use nalgebra::{Matrix3, SymmetricEigen, Vector3};
+use nalgebra::Vector3;
 
 use crate::capture::{ArchPoses, Mesh};
 use crate::geometry::Pose;
@@ -52,24 +52,13 @@ impl Contact {
     /// is deeper (meshes that already overlap there, e.g. a scan's bite registration).
     pub fn new(upper: &Mesh, lower: &Mesh, jaw: &Pose, settings: ContactSettings) -> Contact {
         let to_f64 = |p: &[f32; 3]| Vector3::new(p[0] as f64, p[1] as f64, p[2] as f64);
-        let mean = |m: &Mesh| {
-            m.positions.iter().map(to_f64).sum::<Vector3<f64>>() / m.positions.len().max(1) as f64
-        };
-        let upper_mean = mean(upper);
-        let mut cov = Matrix3::zeros();
-        for p in &upper.positions {
-            let d = to_f64(p) - upper_mean;
-            cov += d * d.transpose();
-        }
-        let eigen = SymmetricEigen::new(cov);
-        let mut order = [0usize, 1, 2];
-        order.sort_by(|&a, &b| eigen.eigenvalues[a].total_cmp(&eigen.eigenvalues[b]));
-        let column = |i: usize| eigen.eigenvectors.column(i).into_owned();
-        let mut axis = column(order[0]);
-        if axis.dot(&(upper_mean - jaw.transform_point(&mean(lower)))) < 0.0 {
+        let (upper_mean, axes) = upper.principal_axes();
+        let (lower_mean, _) = lower.principal_axes();
+        let mut axis = axes[0];
+        if axis.dot(&(upper_mean - jaw.transform_point(&lower_mean))) < 0.0 {
             axis = -axis;
         }
-        let across = [column(order[1]), column(order[2])];
+        let across = [axes[1], axes[2]];
 
         let plane = |p: &Vector3<f64>| [p.dot(&across[0]), p.dot(&across[1])];
         let mut lo = [f64::INFINITY; 2];

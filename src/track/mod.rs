@@ -1,10 +1,12 @@
 //! Tracking: the pose search per arch and frame (`search`), the frame loop around it
-//! (`sequence`), the arches' non-penetration (`contact`), tracks.json as it is written (`output`), scoring against ground truth
-//! (`score`) and overlays (`overlay`).
+//! (`sequence`), the jaw prior's starts (`prior`), the arches' non-penetration (`contact`),
+//! tracks.json as it is written (`output`), scoring against ground truth (`score`) and
+//! overlays (`overlay`).
 
 pub mod contact;
 pub mod output;
 pub mod overlay;
+pub mod prior;
 pub mod score;
 pub mod search;
 pub mod sequence;

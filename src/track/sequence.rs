@@ -10,6 +10,7 @@ use std::time::Instant;
 use nalgebra::Vector3;
 
 use super::contact::{Contact, ContactSettings};
+use super::prior::JawPrior;
 use super::search::{RADIUS_MM, SearchSettings, search};
 use crate::capture::{Arch, ArchPoses, Capture, FrameMasks, MaskMode};
 use crate::energy::{Energy, EnergyEngine};
@@ -158,13 +159,16 @@ pub fn track_frames(
     // Both mask modes: with combined masks a lower-arch candidate used to win by covering the
     // upper arch's pixels (jaw median 5.98 → 7.13 mm), which the contact penalty now forbids
     // (measured with it: 5.17 → 1.68 mm, `bench track --masks combined --seeds 6 --frames 48`).
-    let prior = JawPrior {
-        coarse: jaw_prior(capture, settings.jaw_prior_grid),
-        fine: jaw_prior(capture, settings.jaw_prior_fine_grid),
-        nearest: settings.jaw_prior_nearest,
-        centre: centres[1],
-    };
-    // The side the lower arch is on comes from the poses tracking starts from.
+    // Which side of each arch the other is on comes from the poses tracking starts from.
+    let prior = JawPrior::new(
+        &capture.upper,
+        &capture.lower,
+        &state.last.jaw(),
+        settings.jaw_prior_grid,
+        settings.jaw_prior_fine_grid,
+        settings.jaw_prior_nearest,
+        centres[1],
+    );
     let contact = (settings.contact_weight > 0.0).then(|| {
         Contact::new(
             &capture.upper,
@@ -208,77 +212,6 @@ pub fn track_frames(
         }
         Ok(())
     })
-}
-
-/// The jaw prior's candidates: a coarse grid over the whole range, and the poses of a fine
-/// grid nearest to the frame's starts (fast movements outrun the search; the coarse grid's
-/// steps are too far apart to land close).
-struct JawPrior {
-    coarse: Vec<Pose>,
-    fine: Vec<Pose>,
-    nearest: usize,
-    /// The lower arch's centre (model frame): where distances between jaw poses are taken.
-    centre: Vector3<f64>,
-}
-
-impl JawPrior {
-    /// Jaw poses (upper_from_lower) to try, given the jaw poses the frame starts from.
-    fn candidates(&self, starts: &[Pose]) -> Vec<Pose> {
-        let distance = |j: &Pose| {
-            starts
-                .iter()
-                .map(|s| {
-                    let (r, _) = s.distance_to(j);
-                    (s.transform_point(&self.centre) - j.transform_point(&self.centre)).norm()
-                        + r * RADIUS_MM
-                })
-                .fold(f64::INFINITY, f64::min)
-        };
-        let mut fine: Vec<(f64, &Pose)> = self.fine.iter().map(|j| (distance(j), j)).collect();
-        let n = self.nearest.min(fine.len());
-        if n > 0 && n < fine.len() {
-            fine.select_nth_unstable_by(n, |a, b| a.0.total_cmp(&b.0));
-        }
-        let mut out = self.coarse.clone();
-        out.extend(fine[..n].iter().map(|(_, j)| **j));
-        out
-    }
-}
-
-/// Jaw poses (upper_from_lower) over a grid of an average joint's controls, the joint placed
-/// from the capture's meshes as `synth` places it (it assumes the scan frame: y up, +z
-/// anterior; on meshes in another frame the candidates are wrong, and the energy ignores them).
-fn jaw_prior(capture: &Capture, grid: [usize; 3]) -> Vec<Pose> {
-    use crate::synth::tmj::{JawControls, JawModel};
-    if grid.contains(&0) {
-        return Vec::new();
-    }
-    let rest = crate::synth::arches::rest_bite(&capture.upper, &capture.lower);
-    let model = JawModel::for_arches(&capture.upper, rest);
-    let steps = |n: usize, lo: f64, hi: f64| -> Vec<f64> {
-        (0..n)
-            .map(|i| {
-                if n == 1 {
-                    lo
-                } else {
-                    lo + (hi - lo) * i as f64 / (n - 1) as f64
-                }
-            })
-            .collect()
-    };
-    let mut out = Vec::new();
-    for open in steps(grid[0], 0.0, 1.0) {
-        for lateral in steps(grid[1], -1.0, 1.0) {
-            for protrusion in steps(grid[2], 0.0, 1.0) {
-                out.push(model.jaw_pose(&JawControls {
-                    open,
-                    lateral,
-                    protrusion,
-                }));
-            }
-        }
-    }
-    out
 }
 
 #[allow(clippy::too_many_arguments)]
@@ -455,31 +388,6 @@ fn best_distinct(arch: Arch, options: &[ArchPoses], scores: &[f64], k: usize) ->
 #[cfg(test)]
 mod tests {
     use super::*;
-
-    #[test]
-    fn the_fine_prior_adds_the_poses_nearest_to_the_starts() {
-        let shift = |x: f64| Pose::from_translation(Vector3::new(x, 0.0, 0.0));
-        let prior = JawPrior {
-            coarse: vec![shift(100.0)],
-            fine: (0..20).map(|i| shift(i as f64)).collect(),
-            nearest: 3,
-            centre: Vector3::new(0.0, -10.0, 30.0),
-        };
-        // Starts at x = 4.2 and x = 15.9: the nearest three are 4, 16 and then 5 (0.8 mm).
-        let mut got: Vec<f64> = prior
-            .candidates(&[shift(4.2), shift(15.9)])
-            .iter()
-            .map(|p| p.translation.x)
-            .collect();
-        assert_eq!(got.remove(0), 100.0, "the coarse grid comes first");
-        got.sort_by(f64::total_cmp);
-        assert_eq!(got, vec![4.0, 5.0, 16.0]);
-        let none = JawPrior {
-            nearest: 0,
-            ..prior
-        };
-        assert_eq!(none.candidates(&[shift(4.2)]).len(), 1);
-    }
 
     #[test]
     fn restarts_take_the_best_starts_that_lie_apart() {

@@ -160,6 +160,27 @@ impl Mesh {
         self.boi.iter().filter(|&&b| b).count()
     }
 
+    /// The vertices' centroid and principal axes (unit, signs arbitrary), thinnest spread
+    /// first: for a dental arch, the occlusal axis, then front to back, then side to side.
+    pub fn principal_axes(&self) -> (nalgebra::Vector3<f64>, [nalgebra::Vector3<f64>; 3]) {
+        use nalgebra::{Matrix3, SymmetricEigen, Vector3};
+        let point = |p: &[f32; 3]| Vector3::new(p[0] as f64, p[1] as f64, p[2] as f64);
+        let n = self.positions.len().max(1) as f64;
+        let mean = self.positions.iter().map(point).sum::<Vector3<f64>>() / n;
+        let mut cov = Matrix3::zeros();
+        for p in &self.positions {
+            let d = point(p) - mean;
+            cov += d * d.transpose();
+        }
+        let eigen = SymmetricEigen::new(cov);
+        let mut order = [0usize, 1, 2];
+        order.sort_by(|&a, &b| eigen.eigenvalues[a].total_cmp(&eigen.eigenvalues[b]));
+        (
+            mean,
+            order.map(|i| eigen.eigenvectors.column(i).into_owned()),
+        )
+    }
+
     /// Axis-aligned bounds (min, max) of the vertices used by faces.
     pub fn bounds(&self) -> ([f32; 3], [f32; 3]) {
         let mut lo = [f32::INFINITY; 3];
