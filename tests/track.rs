@@ -45,6 +45,18 @@ fn jawtrack(args: &[&str]) -> std::process::Output {
     out
 }
 
+/// `jawtrack track CAPTURE -o OUT [extra]` on the CPU reference.
+fn track(capture: &Path, out: &Path, extra: &[&str]) {
+    let mut args = vec![
+        "track",
+        capture.to_str().unwrap(),
+        "-o",
+        out.to_str().unwrap(),
+    ];
+    args.extend(extra);
+    jawtrack(&args);
+}
+
 fn score(capture: &Path, tracks: &Path) -> serde_json::Value {
     let out = Command::new(env!("CARGO_BIN_EXE_jawtrack"))
         .args([
@@ -73,14 +85,7 @@ fn a_short_clean_sequence_is_tracked_accurately() {
     let t = tempfile::tempdir().unwrap();
     let out = t.path().join("tracks.json");
     let cap = capture48();
-    jawtrack(&[
-        "track",
-        cap.to_str().unwrap(),
-        "-o",
-        out.to_str().unwrap(),
-        "--frames",
-        "0..6",
-    ]);
+    track(cap, &out, &["--frames", "0..6"]);
     let s = score(cap, &out);
     assert_eq!(s["frames"], 6);
     assert_eq!(s["frames_ok"], 6, "{s}");
@@ -155,14 +160,7 @@ fn frames_without_masks_keep_the_last_pose_and_tracking_recovers() {
     }
     assert!(Capture::open(&cap).is_ok(), "a missing mask is allowed");
     let out = t.path().join("tracks.json");
-    jawtrack(&[
-        "track",
-        cap.to_str().unwrap(),
-        "-o",
-        out.to_str().unwrap(),
-        "--frames",
-        "0..5",
-    ]);
+    track(&cap, &out, &["--frames", "0..5"]);
     let tj: TracksJson = serde_json::from_str(&std::fs::read_to_string(&out).unwrap()).unwrap();
     let status: Vec<&str> = tj
         .frames
@@ -236,13 +234,7 @@ fn meshes_in_another_model_frame_track_as_well() {
     in_z_up_frame(src, &z_up);
     for cap in [src, z_up.as_path()] {
         let out = t.path().join("tracks.json");
-        jawtrack(&[
-            "track",
-            cap.to_str().unwrap(),
-            "-o",
-            out.to_str().unwrap(),
-            "--force",
-        ]);
+        track(cap, &out, &["--force"]);
         let s = score(cap, &out);
         let worst = s["jaw"]["mean_vertex_mm"]["max"].as_f64().unwrap();
         assert!(worst < 0.6, "{}: jaw worst {worst} mm", cap.display());
