@@ -14,8 +14,10 @@ use nalgebra::Vector3;
 use crate::capture::{ArchPoses, Mesh};
 use crate::geometry::Pose;
 
-/// Column width of the height map (mm).
+/// Column width of the height map (mm), and the most columns along a side (a mesh with stray
+/// vertices far away gets wider columns, not a huge map).
 const CELL_MM: f64 = 0.5;
+const MAX_COLUMNS: f64 = 2000.0;
 /// Lower-arch points tested per evaluation, at most (a stride through the vertices).
 const MAX_POINTS: usize = 4000;
 /// Depth is that of the `DEEPEST`-th deepest point.
@@ -36,8 +38,9 @@ pub struct Contact {
     /// axes across it.
     axis: Vector3<f64>,
     across: [Vector3<f64>; 2],
-    /// Grid origin (in `across` coordinates) and size.
+    /// Grid origin (in `across` coordinates), column width and size.
     origin: [f64; 2],
+    cell_mm: f64,
     size: [usize; 2],
     /// Lowest height along `axis` per column; +inf where the upper arch has no point.
     lowest: Vec<f64>,
@@ -70,8 +73,9 @@ impl Contact {
                 hi[k] = hi[k].max(q[k]);
             }
         }
+        let cell_mm = CELL_MM.max((hi[0] - lo[0]).max(hi[1] - lo[1]) / MAX_COLUMNS);
         let size = if lo[0].is_finite() {
-            [0, 1].map(|k| ((hi[k] - lo[k]) / CELL_MM) as usize + 1)
+            [0, 1].map(|k| ((hi[k] - lo[k]) / cell_mm) as usize + 1)
         } else {
             [0, 0]
         };
@@ -79,6 +83,7 @@ impl Contact {
             axis,
             across,
             origin: lo,
+            cell_mm,
             size,
             lowest: vec![f64::INFINITY; size[0] * size[1]],
             points: Vec::new(),
@@ -103,7 +108,7 @@ impl Contact {
     /// The column of a point in the upper model frame, if over the grid.
     fn cell(&self, p: &Vector3<f64>) -> Option<usize> {
         let column = |k: usize| {
-            let c = ((p.dot(&self.across[k]) - self.origin[k]) / CELL_MM).floor();
+            let c = ((p.dot(&self.across[k]) - self.origin[k]) / self.cell_mm).floor();
             (c >= 0.0 && c < self.size[k] as f64).then_some(c as usize)
         };
         Some(column(0)? * self.size[1] + column(1)?)
@@ -204,6 +209,21 @@ mod tests {
             lower: shift.compose(&raised(&contact, &rest, 3.0)),
         };
         assert!((contact.penalty(&moved) - p).abs() < 1e-6);
+    }
+
+    #[test]
+    fn a_stray_vertex_far_away_widens_the_columns_instead_of_the_map() {
+        let (mut upper, lower) = (procedural_arch(true), procedural_arch(false));
+        let rest = rest_bite(&upper, &lower);
+        upper.positions.push([100_000.0, 0.0, 0.0]);
+        let contact = Contact::new(&upper, &lower, &rest, SETTINGS);
+        assert!(
+            contact.size.iter().all(|&n| n <= 2001),
+            "{:?}",
+            contact.size
+        );
+        assert!(contact.cell_mm > 40.0);
+        assert!(contact.depth(&rest).is_finite());
     }
 
     #[test]
