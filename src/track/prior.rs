@@ -121,15 +121,17 @@ pub fn joint_grid(upper: &Mesh, lower: &Mesh, jaw: &Pose, grid: [usize; 3]) -> V
 const SNAP_DEG: f64 = 25.0;
 
 /// The rotation from an arch's model frame to the scan convention: y = its thinnest axis,
-/// signed along `up` (model frame); z = anterior, from the centroid towards the boundary of
-/// interest (without one: the in-plane principal axis nearest model +z); x = y × z.
+/// signed along `up` (model frame); z = anterior: from the centroid towards the boundary of
+/// interest (the front teeth), or, without one or when it lies around the centroid, towards
+/// the closed end of the arch's U (where its sides are closest); x = y × z.
 pub fn scan_frame(mesh: &Mesh, up: &Vector3<f64>) -> Rotation3<f64> {
     let (mean, axes) = mesh.principal_axes();
-    let axis = |i: usize| axes[i];
-    let mut y = axis(0);
-    if y.dot(up) < 0.0 {
-        y = -y;
-    }
+    let y = if axes[0].dot(up) < 0.0 {
+        -axes[0]
+    } else {
+        axes[0]
+    };
+    let in_plane = |v: Vector3<f64>| v - y * y.dot(&v);
     let boi: Vec<Vector3<f64>> = mesh
         .triangles
         .iter()
@@ -137,15 +139,15 @@ pub fn scan_frame(mesh: &Mesh, up: &Vector3<f64>) -> Rotation3<f64> {
         .filter(|(_, b)| **b)
         .flat_map(|(t, _)| t.map(|i| point(&mesh.positions[i as usize])))
         .collect();
-    let forward = if boi.is_empty() {
-        let a = axis(1);
-        if a.z < 0.0 { -a } else { a }
-    } else {
-        boi.iter().sum::<Vector3<f64>>() / boi.len() as f64 - mean
+    let towards_boi = match boi.len() {
+        0 => Vector3::zeros(),
+        n => in_plane(boi.iter().sum::<Vector3<f64>>() / n as f64 - mean),
     };
-    let z = (forward - y * y.dot(&forward))
-        .try_normalize(1e-9)
-        .unwrap_or_else(|| axis(1));
+    let z = if towards_boi.norm() > 2.0 {
+        towards_boi.normalize()
+    } else {
+        closed_end(mesh, &mean, &axes[1], &axes[2])
+    };
     let x = y.cross(&z);
     // Rows: the scan axes in model coordinates.
     let frame = Matrix3::from_rows(&[x.transpose(), y.transpose(), z.transpose()]);
@@ -159,6 +161,29 @@ pub fn scan_frame(mesh: &Mesh, up: &Vector3<f64>) -> Rotation3<f64> {
     let is_rotation = (snapped * snapped.transpose() - Matrix3::identity()).norm() < 1e-9
         && snapped.determinant() > 0.0;
     Rotation3::from_matrix_unchecked(if is_rotation { snapped } else { frame })
+}
+
+/// `front_back` signed towards the closed end of the arch's U: the half (split at the
+/// centroid) whose vertices lie nearer the midline along `side`.
+fn closed_end(
+    mesh: &Mesh,
+    mean: &Vector3<f64>,
+    front_back: &Vector3<f64>,
+    side: &Vector3<f64>,
+) -> Vector3<f64> {
+    let mut spread = [(0.0, 0usize); 2];
+    for p in &mesh.positions {
+        let d = point(p) - mean;
+        let half = &mut spread[(d.dot(front_back) < 0.0) as usize];
+        half.0 += d.dot(side).abs();
+        half.1 += 1;
+    }
+    let [ahead, behind] = spread.map(|(sum, n)| sum / n.max(1) as f64);
+    if ahead <= behind {
+        *front_back
+    } else {
+        -front_back
+    }
 }
 
 fn point(p: &[f32; 3]) -> Vector3<f64> {
@@ -251,6 +276,21 @@ mod tests {
             protrusion: 0.0,
         });
         assert!(worst(&grid[1..], &[open], &lower.principal_axes().0) < 1e-9);
+    }
+
+    #[test]
+    fn without_a_boundary_of_interest_the_arch_shape_tells_the_front() {
+        for upper in [true, false] {
+            let mut mesh = procedural_arch(upper);
+            mesh.boi.iter_mut().for_each(|b| *b = false);
+            // Both arches' "up" points from the lower arch to the upper: +y.
+            let frame = scan_frame(&mesh, &Vector3::y());
+            assert_eq!(frame, Rotation3::identity(), "upper: {upper}");
+            // Turned to face -z: the frame turns it back.
+            let half_turn = Rotation3::from_axis_angle(&Vector3::y_axis(), std::f64::consts::PI);
+            let frame = scan_frame(&rotated(&mesh, &half_turn), &Vector3::y());
+            assert!((frame * half_turn).angle() < 1e-9, "upper: {upper}");
+        }
     }
 
     /// Both arches' model frames turned (each its own way): the prior turns with them, to
