@@ -54,7 +54,6 @@ impl Contact {
     /// arch the lower one is on; the tolerance is raised to its depth plus 0.5 mm when that
     /// is deeper (meshes that already overlap there, e.g. a scan's bite registration).
     pub fn new(upper: &Mesh, lower: &Mesh, jaw: &Pose, settings: ContactSettings) -> Contact {
-        let to_f64 = |p: &[f32; 3]| Vector3::new(p[0] as f64, p[1] as f64, p[2] as f64);
         let (upper_mean, axes) = upper.principal_axes();
         let (lower_mean, _) = lower.principal_axes();
         let mut axis = axes[0];
@@ -66,8 +65,8 @@ impl Contact {
         let plane = |p: &Vector3<f64>| [p.dot(&across[0]), p.dot(&across[1])];
         let mut lo = [f64::INFINITY; 2];
         let mut hi = [f64::NEG_INFINITY; 2];
-        for p in &upper.positions {
-            let q = plane(&to_f64(p));
+        for p in upper.points() {
+            let q = plane(&p);
             for k in 0..2 {
                 lo[k] = lo[k].min(q[k]);
                 hi[k] = hi[k].max(q[k]);
@@ -90,14 +89,13 @@ impl Contact {
             weight: settings.weight,
             tolerance_mm: settings.tolerance_mm,
         };
-        for p in &upper.positions {
-            let p = to_f64(p);
+        for p in upper.points() {
             if let Some(i) = contact.cell(&p) {
                 contact.lowest[i] = contact.lowest[i].min(p.dot(&axis));
             }
         }
         let stride = lower.positions.len().div_ceil(MAX_POINTS).max(1);
-        contact.points = lower.positions.iter().step_by(stride).map(to_f64).collect();
+        contact.points = lower.points().step_by(stride).collect();
         let start = contact.depth(jaw);
         if start + 0.5 > contact.tolerance_mm {
             contact.tolerance_mm = start + 0.5;
@@ -117,21 +115,29 @@ impl Contact {
     /// How far (mm) the lower arch reaches past the upper arch's surface at this jaw pose
     /// (upper_from_lower); negative: that far apart.
     pub fn depth(&self, jaw: &Pose) -> f64 {
-        let mut depths: Vec<f64> = self
-            .points
-            .iter()
-            .filter_map(|p| {
-                let q = jaw.transform_point(p);
-                let lowest = self.lowest[self.cell(&q)?];
-                lowest.is_finite().then(|| q.dot(&self.axis) - lowest)
-            })
-            .collect();
-        if depths.is_empty() {
-            return f64::NEG_INFINITY;
+        // The DEEPEST deepest so far, deepest first (no allocation: this runs per candidate).
+        let mut deepest = [f64::NEG_INFINITY; DEEPEST];
+        let mut seen = 0;
+        for p in &self.points {
+            let q = jaw.transform_point(p);
+            let Some(lowest) = self.cell(&q).map(|i| self.lowest[i]) else {
+                continue;
+            };
+            if !lowest.is_finite() {
+                continue;
+            }
+            seen += 1;
+            let d = q.dot(&self.axis) - lowest;
+            if d > deepest[DEEPEST - 1] {
+                let at = deepest.partition_point(|&x| x >= d);
+                deepest.copy_within(at..DEEPEST - 1, at + 1);
+                deepest[at] = d;
+            }
         }
-        let k = DEEPEST.min(depths.len()) - 1;
-        let (_, kth, _) = depths.select_nth_unstable_by(k, |a, b| b.total_cmp(a));
-        *kth
+        match seen {
+            0 => f64::NEG_INFINITY,
+            n => deepest[n.min(DEEPEST) - 1],
+        }
     }
 
     /// The objective's penalty for these poses: `weight` per mm of depth past the tolerance.

@@ -137,7 +137,7 @@ pub fn scan_frame(mesh: &Mesh, up: &Vector3<f64>) -> Rotation3<f64> {
         .iter()
         .zip(&mesh.boi)
         .filter(|(_, b)| **b)
-        .flat_map(|(t, _)| t.map(|i| point(&mesh.positions[i as usize])))
+        .flat_map(|(t, _)| t.map(|i| mesh.point(i as usize)))
         .collect();
     let towards_boi = match boi.len() {
         0 => Vector3::zeros(),
@@ -172,8 +172,8 @@ fn closed_end(
     side: &Vector3<f64>,
 ) -> Vector3<f64> {
     let mut spread = [(0.0, 0usize); 2];
-    for p in &mesh.positions {
-        let d = point(p) - mean;
+    for p in mesh.points() {
+        let d = p - mean;
         let half = &mut spread[(d.dot(front_back) < 0.0) as usize];
         half.0 += d.dot(side).abs();
         half.1 += 1;
@@ -186,22 +186,18 @@ fn closed_end(
     }
 }
 
-fn point(p: &[f32; 3]) -> Vector3<f64> {
-    Vector3::new(p[0] as f64, p[1] as f64, p[2] as f64)
-}
-
 /// The mesh turned by `r` about the model origin.
 fn rotated(mesh: &Mesh, r: &Rotation3<f64>) -> Mesh {
     Mesh {
         positions: mesh
-            .positions
-            .iter()
+            .points()
             .map(|p| {
-                let q = r * point(p);
+                let q = r * p;
                 [q.x as f32, q.y as f32, q.z as f32]
             })
             .collect(),
-        ..mesh.clone()
+        triangles: mesh.triangles.clone(),
+        boi: mesh.boi.clone(),
     }
 }
 

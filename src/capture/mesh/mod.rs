@@ -160,16 +160,26 @@ impl Mesh {
         self.boi.iter().filter(|&&b| b).count()
     }
 
+    /// Vertex `i` in double precision.
+    pub fn point(&self, i: usize) -> nalgebra::Vector3<f64> {
+        let p = self.positions[i];
+        nalgebra::Vector3::new(p[0] as f64, p[1] as f64, p[2] as f64)
+    }
+
+    /// Every vertex (used by faces or not) in double precision.
+    pub fn points(&self) -> impl Iterator<Item = nalgebra::Vector3<f64>> + '_ {
+        (0..self.positions.len()).map(|i| self.point(i))
+    }
+
     /// The vertices' centroid and principal axes (unit, signs arbitrary), thinnest spread
     /// first: for a dental arch, the occlusal axis, then front to back, then side to side.
     pub fn principal_axes(&self) -> (nalgebra::Vector3<f64>, [nalgebra::Vector3<f64>; 3]) {
         use nalgebra::{Matrix3, SymmetricEigen, Vector3};
-        let point = |p: &[f32; 3]| Vector3::new(p[0] as f64, p[1] as f64, p[2] as f64);
         let n = self.positions.len().max(1) as f64;
-        let mean = self.positions.iter().map(point).sum::<Vector3<f64>>() / n;
+        let mean = self.points().sum::<Vector3<f64>>() / n;
         let mut cov = Matrix3::zeros();
-        for p in &self.positions {
-            let d = point(p) - mean;
+        for p in self.points() {
+            let d = p - mean;
             cov += d * d.transpose();
         }
         let eigen = SymmetricEigen::new(cov);
