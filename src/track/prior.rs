@@ -132,17 +132,9 @@ pub fn scan_frame(mesh: &Mesh, up: &Vector3<f64>) -> Rotation3<f64> {
         axes[0]
     };
     let in_plane = |v: Vector3<f64>| v - y * y.dot(&v);
-    let boi: Vec<Vector3<f64>> = mesh
-        .triangles
-        .iter()
-        .zip(&mesh.boi)
-        .filter(|(_, b)| **b)
-        .flat_map(|(t, _)| t.map(|i| mesh.point(i as usize)))
-        .collect();
-    let towards_boi = match boi.len() {
-        0 => Vector3::zeros(),
-        n => in_plane(boi.iter().sum::<Vector3<f64>>() / n as f64 - mean),
-    };
+    let towards_boi = mesh
+        .boi_centroid()
+        .map_or(Vector3::zeros(), |c| in_plane(c - mean));
     let z = if towards_boi.norm() > 2.0 {
         towards_boi.normalize()
     } else {

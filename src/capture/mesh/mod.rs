@@ -171,6 +171,20 @@ impl Mesh {
         (0..self.positions.len()).map(|i| self.point(i))
     }
 
+    /// The mean of the boundary of interest's face corners; `None` without a BOI.
+    pub fn boi_centroid(&self) -> Option<nalgebra::Vector3<f64>> {
+        let corners = self
+            .triangles
+            .iter()
+            .zip(&self.boi)
+            .filter(|(_, b)| **b)
+            .flat_map(|(t, _)| t.map(|i| self.point(i as usize)));
+        let (sum, n) = corners.fold((nalgebra::Vector3::zeros(), 0usize), |(s, n), p| {
+            (s + p, n + 1)
+        });
+        (n > 0).then(|| sum / n as f64)
+    }
+
     /// The vertices' centroid and principal axes (unit, signs arbitrary), thinnest spread
     /// first: for a dental arch, the occlusal axis, then front to back, then side to side.
     pub fn principal_axes(&self) -> (nalgebra::Vector3<f64>, [nalgebra::Vector3<f64>; 3]) {
