@@ -179,8 +179,9 @@ pub struct Placed {
     crosses_near: bool,
 }
 
-/// A vertex's snapped framebuffer position (1/256 pixel units) and 1/z.
-type Snapped = (i64, i64, f32);
+/// A vertex's snapped framebuffer position (1/256 pixel units; inside the guard band these
+/// fit an i32) and 1/z.
+type Snapped = (i32, i32, f32);
 
 impl Placed {
     /// Transform and project every vertex of `mesh` (compact it first: see `Mesh::compacted`).
@@ -208,6 +209,7 @@ impl Placed {
         let mut lo = (i64::MAX, i64::MAX);
         let mut hi = (i64::MIN, i64::MIN);
         for &(x, y, _) in self.projected.iter().flatten() {
+            let (x, y) = (x as i64, y as i64);
             lo = (lo.0.min(x), lo.1.min(y));
             hi = (hi.0.max(x), hi.1.max(y));
         }
@@ -232,12 +234,14 @@ impl Placed {
     }
 }
 
+/// n / 256 rounded down (an arithmetic shift floors).
 fn floor_div(n: i64) -> i64 {
-    n.div_euclid(1 << SUBPIXEL_BITS)
+    n >> SUBPIXEL_BITS
 }
 
+/// n / 256 rounded up.
 fn ceil_div(n: i64) -> i64 {
-    -(-n).div_euclid(1 << SUBPIXEL_BITS)
+    -((-n) >> SUBPIXEL_BITS)
 }
 
 /// Rasterise a placed mesh into `target`. Faces get `class_body`, or `class_boi` where the
@@ -314,14 +318,20 @@ impl Projector {
     }
 
     /// Snapped framebuffer position (1/256 pixel units) and 1/z; `None` outside the guard band.
-    fn project(&self, p: &[f32; 3]) -> Option<(i64, i64, f32)> {
+    fn project(&self, p: &[f32; 3]) -> Option<Snapped> {
         let z = p[2];
         let fb = [0, 1].map(|k| self.focal[k] * p[k] / z + self.centre[k]);
         if fb.iter().any(|c| c.abs() > GUARD_PIXELS as f32) {
             return None;
         }
-        // floor(x + 0.5), as the shader snaps.
-        let snap = |c: f32| (c * SUBPIXEL as f32 + 0.5).floor() as i64;
+        // floor(x + 0.5), as the shader snaps; written out because `f32::floor` is a libm
+        // call on baseline x86-64. Exact: |x| < 2^29 inside the guard band, and an f32 that
+        // large has no fraction.
+        let snap = |c: f32| {
+            let s = c * SUBPIXEL as f32 + 0.5;
+            let t = s as i32;
+            t - ((t as f32) > s) as i32
+        };
         Some((snap(fb[0]), snap(fb[1]), 1.0 / z))
     }
 }
@@ -334,7 +344,16 @@ fn is_top_left(dx: i64, dy: i64) -> bool {
 }
 
 fn raster_triangle(v: [Snapped; 3], class: u8, rect: Rect, target: &mut Target) {
-    let [mut a, mut b, c] = v;
+    let [mut a, mut b, c] = v.map(|(x, y, inv_z)| (x as i64, y as i64, inv_z));
+    // Pixels whose centres (x·256 + 128) lie within the snapped bounds, within the target.
+    // Most of a scan's triangles are smaller than a pixel and cover no centre: they end here.
+    let px0 = ceil_div(a.0.min(b.0).min(c.0) - HALF_PIXEL).max(rect.x0 as i64);
+    let px1 = floor_div(a.0.max(b.0).max(c.0) - HALF_PIXEL).min((rect.x0 + rect.width) as i64 - 1);
+    let py0 = ceil_div(a.1.min(b.1).min(c.1) - HALF_PIXEL).max(rect.y0 as i64);
+    let py1 = floor_div(a.1.max(b.1).max(c.1) - HALF_PIXEL).min((rect.y0 + rect.height) as i64 - 1);
+    if px0 > px1 || py0 > py1 {
+        return;
+    }
     let mut area = (b.0 - a.0) * (c.1 - a.1) - (b.1 - a.1) * (c.0 - a.0);
     if area == 0 {
         return;
@@ -342,14 +361,6 @@ fn raster_triangle(v: [Snapped; 3], class: u8, rect: Rect, target: &mut Target) 
     if area < 0 {
         std::mem::swap(&mut a, &mut b);
         area = -area;
-    }
-    // Pixels whose centres (x·256 + 128) lie within the snapped bounds.
-    let px0 = ceil_div(a.0.min(b.0).min(c.0) - HALF_PIXEL).max(rect.x0 as i64);
-    let px1 = floor_div(a.0.max(b.0).max(c.0) - HALF_PIXEL).min((rect.x0 + rect.width) as i64 - 1);
-    let py0 = ceil_div(a.1.min(b.1).min(c.1) - HALF_PIXEL).max(rect.y0 as i64);
-    let py1 = floor_div(a.1.max(b.1).max(c.1) - HALF_PIXEL).min((rect.y0 + rect.height) as i64 - 1);
-    if px0 > px1 || py0 > py1 {
-        return;
     }
     // Edge e_k is opposite vertex k: e0 = b→c, e1 = c→a, e2 = a→b.
     let edges = [(b, c), (c, a), (a, b)];
