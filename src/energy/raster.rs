@@ -324,16 +324,19 @@ impl Projector {
         if fb.iter().any(|c| c.abs() > GUARD_PIXELS as f32) {
             return None;
         }
-        // floor(x + 0.5), as the shader snaps; written out because `f32::floor` is a libm
-        // call on baseline x86-64. Exact: |x| < 2^29 inside the guard band, and an f32 that
-        // large has no fraction.
-        let snap = |c: f32| {
-            let s = c * SUBPIXEL as f32 + 0.5;
-            let t = s as i32;
-            t - ((t as f32) > s) as i32
-        };
+        // floor(x + 0.5), as the shader snaps.
+        let snap = |c: f32| floor_i32(c * SUBPIXEL as f32 + 0.5);
         Some((snap(fb[0]), snap(fb[1]), 1.0 / z))
     }
+}
+
+/// `x.floor() as i32` for |x| < 2^31, without `f32::floor`, a libm call on baseline x86-64
+/// (one per projected coordinate). Truncation rounds towards zero, so a negative x with a
+/// fraction comes out one too high; an f32 of 2^24 or more has no fraction, so converting the
+/// truncation back is exact wherever the comparison matters.
+fn floor_i32(x: f32) -> i32 {
+    let t = x as i32;
+    t - ((t as f32) > x) as i32
 }
 
 /// Top-left rule for y down: an edge a→b of a triangle with positive area (interior where
@@ -456,6 +459,18 @@ mod tests {
 
     fn count(t: &Target, class: u8) -> usize {
         t.class.iter().filter(|&&c| c == class).count()
+    }
+
+    #[test]
+    fn floor_i32_is_floor() {
+        let mut values = vec![
+            0.0f32, -0.0, 0.5, -0.5, 1.0, -1.0, 255.5, -255.5, 2.56e8, -2.56e8,
+        ];
+        values.extend((-2000..2000).map(|k| k as f32 * 0.37 + 0.001));
+        values.extend([16_777_217.0f32, -16_777_217.0, 8_388_607.5, -8_388_607.5]);
+        for x in values {
+            assert_eq!(floor_i32(x), x.floor() as i32, "{x}");
+        }
     }
 
     #[test]
