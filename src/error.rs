@@ -7,26 +7,25 @@ pub enum Error {
     /// A file the capture needs does not exist.
     #[error("{}: {what} not found", path.display())]
     Missing { path: PathBuf, what: String },
-    #[error("{}: cannot read: {source}", path.display())]
+    // The underlying errors are part of the messages, not `#[source]`s, so that anyhow's
+    // `{:#}` does not print them twice.
+    #[error("{}: cannot read: {error}", path.display())]
     Read {
         path: PathBuf,
-        #[source]
-        source: std::io::Error,
+        error: std::io::Error,
     },
-    #[error("{}: cannot write: {source}", path.display())]
+    #[error("{}: cannot write: {error}", path.display())]
     Write {
         path: PathBuf,
-        #[source]
-        source: std::io::Error,
+        error: std::io::Error,
     },
     /// JSON that does not parse or does not fit the schema; `field` is where (`.` for the
     /// document itself).
-    #[error("{}: `{field}`: malformed JSON: {source}", path.display())]
+    #[error("{}: `{field}`: malformed JSON: {error}", path.display())]
     Json {
         path: PathBuf,
         field: String,
-        #[source]
-        source: serde_json::Error,
+        error: serde_json::Error,
     },
     /// A value that parsed but is wrong: the file, the field (a JSON path such as
     /// `rotation[1][2]`, or a mesh element such as `face 12`) and what is wrong.
@@ -74,7 +73,10 @@ impl Error {
                 what: what.to_string(),
             }
         } else {
-            Error::Read { path, source }
+            Error::Read {
+                path,
+                error: source,
+            }
         }
     }
 }

@@ -240,3 +240,46 @@ fn meshes_in_another_model_frame_track_as_well() {
         assert!(worst < 0.6, "{}: jaw worst {worst} mm", cap.display());
     }
 }
+
+#[test]
+fn settings_come_from_a_file_or_inline_and_a_misspelt_field_is_an_error() {
+    let t = tempfile::tempdir().unwrap();
+    let cap = capture48();
+    let c = cap.to_str().unwrap();
+    let settings = r#"{"search": {"scales": [1.0], "sample_rounds": 0}, "jaw_prior_nearest": 5}"#;
+    let file = t.path().join("settings.json");
+    std::fs::write(&file, settings).unwrap();
+    let (from_file, inline) = (t.path().join("a.json"), t.path().join("b.json"));
+    let f = file.to_str().unwrap();
+    track(cap, &from_file, &["--frames", "0..2", "--settings", f]);
+    track(cap, &inline, &["--frames", "0..2", "--settings", settings]);
+    let read = |p: &Path| -> TracksJson {
+        serde_json::from_str(&std::fs::read_to_string(p).unwrap()).unwrap()
+    };
+    let (a, b) = (read(&from_file), read(&inline));
+    assert_eq!(a.frames.len(), 2);
+    for (x, y) in a.frames.iter().zip(&b.frames) {
+        assert_eq!((x.upper, x.lower), (y.upper, y.lower));
+    }
+    // A misspelt field names where it came from and the field; nothing is written.
+    let refused = |settings: &str, out: &Path| {
+        let r = Command::new(env!("CARGO_BIN_EXE_jawtrack"))
+            .args(["track", c, "-o", out.to_str().unwrap(), "--backend", "cpu"])
+            .args(["--settings", settings])
+            .output()
+            .unwrap();
+        assert!(!r.status.success());
+        assert!(!out.exists());
+        String::from_utf8_lossy(&r.stderr).into_owned()
+    };
+    let err = refused(r#"{"search": {"lamda": 1.0}}"#, &t.path().join("c.json"));
+    assert!(
+        err.contains("--settings") && err.contains("search.lamda") && err.contains("unknown field"),
+        "{err}"
+    );
+    std::fs::write(&file, r#"{"restart": 2}"#).unwrap();
+    let err = refused(f, &t.path().join("d.json"));
+    assert!(err.contains(f) && err.contains("`restart`"), "{err}");
+    // The message says it once (no cause chain repeating it).
+    assert_eq!(err.matches("unknown field").count(), 1, "{err}");
+}

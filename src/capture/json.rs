@@ -156,11 +156,17 @@ pub struct FrameRecordJson {
 /// Read and parse a JSON file; a missing file is [`Error::Missing`] with `what`.
 pub fn read_json<T: DeserializeOwned>(path: &Path, what: &str) -> Result<T> {
     let text = std::fs::read_to_string(path).map_err(|e| Error::read(path, what, e))?;
-    let de = &mut serde_json::Deserializer::from_str(&text);
+    parse_json(&text, path)
+}
+
+/// JSON text read from `origin` (a file, or where else it came from, such as a command-line
+/// option), with the same errors as `read_json`.
+pub fn parse_json<T: DeserializeOwned>(text: &str, origin: &Path) -> Result<T> {
+    let de = &mut serde_json::Deserializer::from_str(text);
     serde_path_to_error::deserialize(de).map_err(|e| Error::Json {
-        path: path.to_path_buf(),
+        path: origin.to_path_buf(),
         field: e.path().to_string(),
-        source: e.into_inner(),
+        error: e.into_inner(),
     })
 }
 

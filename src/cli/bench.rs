@@ -263,7 +263,8 @@ pub struct TrackArgs {
     /// scans, ../shared/data/scan-tag0).
     #[arg(long)]
     meshes: Option<PathBuf>,
-    /// Tracking settings (JSON, fields of TrackSettings), e.g. to turn the jaw prior off.
+    /// Tracking settings (JSON, fields of TrackSettings), e.g. to turn the jaw prior off: a
+    /// file, or the JSON itself when it starts with `{`.
     #[arg(long)]
     settings: Option<PathBuf>,
     /// How the meshes are simplified at load (for tracking, the floor and the score alike).

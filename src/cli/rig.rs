@@ -181,7 +181,8 @@ pub struct LearnArgs {
     /// Seed of the networks' initial weights.
     #[arg(long, default_value_t = 0)]
     pub seed: u64,
-    /// Training settings as JSON (fields of RigSettings; missing ones take their defaults).
+    /// Training settings as JSON (fields of RigSettings; missing ones take their defaults):
+    /// a file, or the JSON itself when it starts with `{`.
     #[arg(long)]
     pub settings: Option<PathBuf>,
     /// Print the summary as JSON.
@@ -269,7 +270,7 @@ fn learn(a: LearnArgs) -> anyhow::Result<()> {
     let (poses, read_seconds) = load_poses(&a.input)?;
     let (_, metric) = load_mesh(&a.mesh)?;
     let mut settings: RigSettings = match &a.settings {
-        Some(p) => jawtrack::capture::json::read_json(p, "rig settings")?,
+        Some(p) => super::read_settings(p, "rig settings")?,
         None => RigSettings::default(),
     };
     settings.alpha = a.alpha;

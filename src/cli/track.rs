@@ -33,8 +33,9 @@ pub struct Args {
     pub force: bool,
     #[command(flatten)]
     pub meshes: super::energy::MeshArgs,
-    /// Tracking settings as JSON (the fields of `TrackSettings`; see README), instead of the
-    /// defaults.
+    /// Tracking settings as JSON (the fields of `TrackSettings`; see README; missing ones take
+    /// their defaults, unknown ones are an error): a file, or the JSON itself when it starts
+    /// with `{`, e.g. '{"search": {"lambda": 1.0}}'.
     #[arg(long)]
     pub settings: Option<PathBuf>,
 }
@@ -92,7 +93,7 @@ pub fn run(a: Args) -> anyhow::Result<()> {
 
 pub fn track(capture: &Capture, a: &Args) -> anyhow::Result<Summary> {
     let settings: TrackSettings = match &a.settings {
-        Some(p) => jawtrack::capture::json::read_json(p, "settings file")?,
+        Some(p) => super::read_settings(p, "settings file")?,
         None => TrackSettings::default(),
     };
     let range = match &a.frames {

@@ -398,27 +398,27 @@ pub fn generate(
         .unwrap_or(Path::new("."));
     std::fs::create_dir_all(parent).map_err(|source| Error::Write {
         path: parent.to_path_buf(),
-        source,
+        error: source,
     })?;
     let staging = tempfile::Builder::new()
         .prefix(".jawtrack-synth-")
         .tempdir_in(parent)
         .map_err(|source| Error::Write {
             path: parent.to_path_buf(),
-            source,
+            error: source,
         })?;
     let dir = staging.path();
     let report = write_capture(dir, &session, opts, progress, started)?;
     if out.exists() {
         std::fs::remove_dir_all(out).map_err(|source| Error::Write {
             path: out.to_path_buf(),
-            source,
+            error: source,
         })?;
     }
     let dir = staging.keep();
     std::fs::rename(&dir, out).map_err(|source| Error::Write {
         path: out.to_path_buf(),
-        source,
+        error: source,
     })?;
     Ok(report)
 }

@@ -82,7 +82,7 @@ impl TracksWriter {
         }
         let werr = |source| Error::Write {
             path: journal_path.clone(),
-            source,
+            error: source,
         };
         if let Some(dir) = path.parent().filter(|d| !d.as_os_str().is_empty()) {
             std::fs::create_dir_all(dir).map_err(werr)?;
@@ -109,7 +109,7 @@ impl TracksWriter {
         let rec = record(r);
         let werr = |source| Error::Write {
             path: self.journal_path.clone(),
-            source,
+            error: source,
         };
         writeln!(
             self.journal,
@@ -141,7 +141,7 @@ impl TracksWriter {
         self.rewrite()?;
         std::fs::remove_file(&self.journal_path).map_err(|source| Error::Write {
             path: self.journal_path.clone(),
-            source,
+            error: source,
         })?;
         Ok(self.records)
     }

@@ -19,7 +19,7 @@ use crate::geometry::Pose;
 /// The search's settings; the defaults suit three cameras at ~20 cm with half-resolution masks
 /// (a pixel is ~0.4 mm there).
 #[derive(Debug, Clone, serde::Serialize, serde::Deserialize)]
-#[serde(default)]
+#[serde(default, deny_unknown_fields)]
 pub struct SearchSettings {
     /// Central-difference step for the gradient: rotation (rad) and translation (mm).
     pub fd_step_rad: f64,

@@ -18,7 +18,7 @@ use crate::error::Result;
 use crate::geometry::Pose;
 
 #[derive(Debug, Clone, serde::Serialize, serde::Deserialize)]
-#[serde(default)]
+#[serde(default, deny_unknown_fields)]
 pub struct TrackSettings {
     pub search: SearchSettings,
     /// Passes over the two arches per frame (upper, then lower with the new upper). With
