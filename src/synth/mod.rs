@@ -396,29 +396,29 @@ pub fn generate(
         .parent()
         .filter(|p| !p.as_os_str().is_empty())
         .unwrap_or(Path::new("."));
-    std::fs::create_dir_all(parent).map_err(|source| Error::Write {
+    std::fs::create_dir_all(parent).map_err(|error| Error::Write {
         path: parent.to_path_buf(),
-        error: source,
+        error,
     })?;
     let staging = tempfile::Builder::new()
         .prefix(".jawtrack-synth-")
         .tempdir_in(parent)
-        .map_err(|source| Error::Write {
+        .map_err(|error| Error::Write {
             path: parent.to_path_buf(),
-            error: source,
+            error,
         })?;
     let dir = staging.path();
     let report = write_capture(dir, &session, opts, progress, started)?;
     if out.exists() {
-        std::fs::remove_dir_all(out).map_err(|source| Error::Write {
+        std::fs::remove_dir_all(out).map_err(|error| Error::Write {
             path: out.to_path_buf(),
-            error: source,
+            error,
         })?;
     }
     let dir = staging.keep();
-    std::fs::rename(&dir, out).map_err(|source| Error::Write {
+    std::fs::rename(&dir, out).map_err(|error| Error::Write {
         path: out.to_path_buf(),
-        error: source,
+        error,
     })?;
     Ok(report)
 }

@@ -80,9 +80,9 @@ impl TracksWriter {
                 "already exists; pass --resume to continue it or --force to start over",
             ));
         }
-        let werr = |source| Error::Write {
+        let werr = |error| Error::Write {
             path: journal_path.clone(),
-            error: source,
+            error,
         };
         if let Some(dir) = path.parent().filter(|d| !d.as_os_str().is_empty()) {
             std::fs::create_dir_all(dir).map_err(werr)?;
@@ -107,9 +107,9 @@ impl TracksWriter {
 
     pub fn push(&mut self, r: &FrameResult) -> Result<()> {
         let rec = record(r);
-        let werr = |source| Error::Write {
+        let werr = |error| Error::Write {
             path: self.journal_path.clone(),
-            error: source,
+            error,
         };
         writeln!(
             self.journal,
@@ -139,9 +139,9 @@ impl TracksWriter {
     /// Write tracks.json a last time and drop the journal.
     pub fn finish(mut self) -> Result<Vec<FrameRecordJson>> {
         self.rewrite()?;
-        std::fs::remove_file(&self.journal_path).map_err(|source| Error::Write {
+        std::fs::remove_file(&self.journal_path).map_err(|error| Error::Write {
             path: self.journal_path.clone(),
-            error: source,
+            error,
         })?;
         Ok(self.records)
     }
