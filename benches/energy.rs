@@ -61,6 +61,10 @@ fn bench_energy(c: &mut Criterion) {
             })
             .collect();
         let mut engines: Vec<(String, Box<dyn EnergyEngine>)> = Vec::new();
+        engines.push((
+            "cpu-Energy".into(),
+            Box::new(CpuEnergy::with_region(scene.clone(), Region::Energy)),
+        ));
         for region in [Region::Footprint, Region::FullFrame] {
             engines.push((
                 format!("cpu-{region:?}"),

@@ -119,7 +119,9 @@ fn compare_on_synthetic(masks: MaskKind) {
         return;
     };
     let mut readback = GpuEnergy::readback_baseline(scene.clone()).unwrap();
-    let mut cpu = CpuEnergy::new(scene);
+    let mut cpu = CpuEnergy::new(scene.clone());
+    // What tracking uses: the same energy, body faces off the mask skipped.
+    let mut cpu_energy = CpuEnergy::with_region(scene, Region::Energy);
     let mut worst = 0.0f64;
     let mut worst_region = 0u64;
     let mut differing = 0usize;
@@ -131,6 +133,7 @@ fn compare_on_synthetic(masks: MaskKind) {
             &mut g_full,
             &mut readback,
             &mut cpu,
+            &mut cpu_energy,
         ] {
             e.set_frame(&frame).unwrap();
         }
@@ -171,6 +174,22 @@ fn compare_on_synthetic(masks: MaskKind) {
                         assert!(
                             diff <= 2,
                             "frame {f} {arch:?} candidate {k} camera {cam}: {x:?} vs {y:?}"
+                        );
+                    }
+                }
+            }
+            let ee = cpu_energy.evaluate(arch, &cands).unwrap();
+            for (k, (a, b)) in eg.iter().zip(&ee).enumerate() {
+                for (cam, (ga, cb)) in a.cameras.iter().zip(&b.cameras).enumerate() {
+                    let tolerance = (0.001 * cb.mask_pixels() as f64).max(1.0);
+                    for (what, g, c) in [
+                        ("uncovered", ga.uncovered(), cb.uncovered()),
+                        ("BOI outside", ga.boi_outside(), cb.boi_outside()),
+                        ("cross", ga.cross(), cb.cross()),
+                    ] {
+                        assert!(
+                            (g as f64 - c as f64).abs() <= tolerance,
+                            "frame {f} {arch:?} candidate {k} camera {cam} {what}: gpu {g} cpu (energy region) {c}"
                         );
                     }
                 }

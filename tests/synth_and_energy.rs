@@ -190,3 +190,11 @@ fn bootstrap_points_recover_the_first_poses() {
         );
     }
 }
+
+#[test]
+fn the_energy_region_skips_body_faces_without_changing_the_energy() {
+    for masks in [MaskKind::PerArch, MaskKind::Combined] {
+        let c = Capture::open(template(Preset::Realistic, masks)).unwrap();
+        assert!(common::energy_region_matches_footprint(&c, 3.0) >= 100);
+    }
+}

@@ -153,7 +153,7 @@ fn energy(a: EnergyArgs) -> anyhow::Result<()> {
         let triangles = capture.lower.triangles.len();
         let mut engines: Vec<(String, Region, Box<dyn EnergyEngine>)> = Vec::new();
         let want = |b: &str| a.backends.iter().any(|x| x == b);
-        for region in [Region::Footprint, Region::FullFrame] {
+        for region in [Region::Energy, Region::Footprint, Region::FullFrame] {
             if want("cpu") {
                 engines.push((
                     "cpu".into(),
@@ -161,7 +161,8 @@ fn energy(a: EnergyArgs) -> anyhow::Result<()> {
                     Box::new(CpuEnergy::with_region(scene.clone(), region)),
                 ));
             }
-            if want("gpu") {
+            // The GPU engine draws the footprint for `Energy`.
+            if want("gpu") && region != Region::Energy {
                 match GpuEnergy::new(scene.clone(), region) {
                     Ok(g) => {
                         report.adapter = Some(g.context().describe());
@@ -390,7 +391,7 @@ pub fn track(a: TrackArgs) -> anyhow::Result<()> {
             let opened = jawtrack::energy::open_engine(
                 a.engine.backend,
                 Scene::from_capture(&capture),
-                a.engine.region,
+                a.engine.region.unwrap_or(Region::Energy),
             )?;
             let mut engine = opened.engine;
             let vertices = jawtrack::track::score::sample_vertices(&capture.lower);

@@ -66,9 +66,12 @@ pub struct EngineArgs {
     /// reference otherwise; `JAWTRACK_ADAPTER=substring` picks an adapter by name.
     #[arg(long, value_enum, default_value_t = Backend::Auto)]
     pub backend: Backend,
-    /// Render and count only where the arch can be (`footprint`) or every pixel.
-    #[arg(long, value_enum, default_value_t = Region::Footprint)]
-    pub region: Region,
+    /// What to render and count: only where the arch can be (`footprint`), every pixel
+    /// (`full-frame`), or only what can change the energy (`energy`: the CPU reference skips
+    /// body faces off the mask; the other counts are then low). Default: `energy` where
+    /// only the energy is read (track, bench track), `footprint` for the energy command.
+    #[arg(long, value_enum)]
+    pub region: Option<Region>,
 }
 
 pub fn run(a: Args) -> anyhow::Result<()> {
@@ -104,7 +107,7 @@ pub fn run(a: Args) -> anyhow::Result<()> {
     let opened = open_engine(
         a.engine.backend,
         Scene::from_capture(&capture),
-        a.engine.region,
+        a.engine.region.unwrap_or(Region::Footprint),
     )?;
     eprintln!("backend: {}", opened.choice);
     let mut engine = opened.engine;

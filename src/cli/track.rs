@@ -4,7 +4,7 @@ use std::time::Instant;
 use anyhow::{Context, bail};
 use jawtrack::capture::json::FrameRecordJson;
 use jawtrack::capture::{ArchPoses, Capture};
-use jawtrack::energy::{Scene, open_engine};
+use jawtrack::energy::{Region, Scene, open_engine};
 use jawtrack::track::output::{TracksWriter, record_poses};
 use jawtrack::track::score::{ScoreReport, Stats, score};
 use jawtrack::track::{Status, TrackSettings, TrackState, overlay, track_frames};
@@ -139,7 +139,7 @@ pub fn track(capture: &Capture, a: &Args) -> anyhow::Result<Summary> {
     let opened = open_engine(
         a.engine.backend,
         Scene::from_capture(capture),
-        a.engine.region,
+        a.engine.region.unwrap_or(Region::Energy),
     )?;
     eprintln!("energy backend: {}", opened.choice);
     let mut engine = opened.engine;

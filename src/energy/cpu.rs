@@ -8,12 +8,15 @@ use std::sync::{Arc, Mutex};
 
 use rayon::prelude::*;
 
-use super::raster::{self, CLASS_BODY, CLASS_BOI, Placed, Target};
+use super::backfaces::{AwaySign, away_sign};
+use super::clusters::{self, Cluster};
+use super::raster::{self, Bounds, CLASS_BODY, CLASS_BOI, Placed, Target};
+use super::relevance::{LabelledTiles, Relevance};
 use super::{
     Counts, Energy, EnergyEngine, MASK_NONE, MASK_OTHER, MASK_OWN, Region, Scene,
     counts_with_outside, mask_totals,
 };
-use crate::capture::{Arch, ArchPoses, FrameMasks, LabelMask};
+use crate::capture::{Arch, ArchPoses, FrameMasks, LOWER_BIT, LabelMask, Mesh, UPPER_BIT};
 use crate::error::Result;
 use crate::geometry::{Camera, Pose};
 
@@ -22,11 +25,19 @@ struct PreparedMask {
     mask: LabelMask,
     /// Per scored arch (upper, lower): see `mask_totals`.
     totals: [[u64; 2]; 2],
+    /// Where either arch's label is (for [`Region::Energy`]).
+    tiles: LabelledTiles,
 }
 
 pub struct CpuEnergy {
     scene: Scene,
     region: Region,
+    /// Per arch (upper, lower): the vertices of its boundary-of-interest faces, and its
+    /// faces in clusters (the scene's faces are in spatial order).
+    boi_vertices: [Vec<u32>; 2],
+    clusters: [Vec<Cluster>; 2],
+    /// Per arch: which faces face away from a camera, for a closed mesh.
+    away: [Option<AwaySign>; 2],
     frame: Vec<Option<PreparedMask>>,
     /// The other arch as last drawn: a search holds it still while it moves the scored arch,
     /// so it is rasterised once per pose rather than once per candidate.
@@ -57,8 +68,22 @@ impl CpuEnergy {
 
     pub fn with_region(scene: Scene, region: Region) -> Self {
         let n = scene.cameras.len();
+        // Faces in spatial order, then vertices numbered by first use (`compacted`): what one
+        // cluster reads lies together in memory.
+        let scene = Scene {
+            upper: clusters::spatially_sorted(&scene.upper),
+            lower: clusters::spatially_sorted(&scene.lower),
+            ..scene
+        }
+        .compacted();
         CpuEnergy {
-            scene: scene.compacted(),
+            boi_vertices: [boi_vertices(&scene.upper), boi_vertices(&scene.lower)],
+            clusters: [
+                clusters::clusters(&scene.upper),
+                clusters::clusters(&scene.lower),
+            ],
+            away: [away_sign(&scene.upper), away_sign(&scene.lower)],
+            scene,
             region,
             frame: (0..n).map(|_| None).collect(),
             other: Mutex::new(None),
@@ -115,7 +140,14 @@ impl CpuEnergy {
         };
         SCRATCH.with(|s| {
             let s = &mut *s.borrow_mut();
-            render(&self.scene, self.region, cam, arch, poses, other, s);
+            let a = (arch == Arch::Lower) as usize;
+            let skip = (self.region == Region::Energy).then(|| Skip {
+                tiles: &prep.tiles,
+                boi_vertices: &self.boi_vertices[a],
+                clusters: &self.clusters[a],
+                away: self.away[a],
+            });
+            render(&self.scene, self.region, cam, arch, poses, other, skip, s);
             count(
                 cam,
                 &s.target,
@@ -127,9 +159,30 @@ impl CpuEnergy {
     }
 }
 
+/// The vertices of a mesh's boundary-of-interest faces, each once.
+fn boi_vertices(mesh: &Mesh) -> Vec<u32> {
+    let mut v: Vec<u32> = (mesh.triangles.iter().zip(&mesh.boi))
+        .filter(|(_, boi)| **boi)
+        .flat_map(|(t, _)| *t)
+        .collect();
+    v.sort_unstable();
+    v.dedup();
+    v
+}
+
+/// What [`Region::Energy`] needs to skip body faces (see `super::relevance`).
+struct Skip<'a> {
+    tiles: &'a LabelledTiles,
+    boi_vertices: &'a [u32],
+    clusters: &'a [Cluster],
+    away: Option<AwaySign>,
+}
+
 /// Render the scored arch (body/BOI) over the other arch (drawn before, see
 /// `Scene::other_arch_class`) within the scored arch's footprint (grown to the other arch's
-/// in combined mode). The depth test makes this the same picture as drawing both in turn.
+/// in combined mode). The depth test makes this the same picture as drawing both in turn;
+/// with `skip`, body faces that cannot change the energy are left out.
+#[allow(clippy::too_many_arguments)]
 fn render(
     scene: &Scene,
     region: Region,
@@ -137,6 +190,7 @@ fn render(
     arch: Arch,
     poses: &ArchPoses,
     other: &Target,
+    skip: Option<Skip>,
     s: &mut Scratch,
 ) {
     let mesh = scene.mesh(arch);
@@ -145,14 +199,41 @@ fn render(
     let other_rect = other.rect.unwrap_or(raster::Rect::full(0, 0));
     let rect = match region {
         Region::FullFrame => raster::Rect::full(cam.width, cam.height),
-        Region::Footprint if scene.other_arch_class() != raster::CLASS_NONE => {
+        _ if scene.other_arch_class() != raster::CLASS_NONE => {
             s.scored.footprint(cam).union(&other_rect)
         }
-        Region::Footprint => s.scored.footprint(cam),
+        Region::Footprint | Region::Energy => s.scored.footprint(cam),
     };
     s.target.reset(rect);
     s.target.copy_from(other);
-    raster::rasterise(cam, mesh, &s.scored, CLASS_BODY, CLASS_BOI, &mut s.target);
+    match skip {
+        None => raster::rasterise(cam, mesh, &s.scored, CLASS_BODY, CLASS_BOI, &mut s.target),
+        Some(skip) => {
+            s.scored.leave_out_faces_turned_away(skip.away);
+            let relevance = Relevance {
+                tiles: skip.tiles,
+                boi: s.scored.footprint_of_vertices(cam, skip.boi_vertices),
+            };
+            for cluster in skip.clusters {
+                if !cluster.has_boi {
+                    let r = s.scored.footprint_of_box(cam, &cluster.corners);
+                    match Bounds::of_rect(&r) {
+                        Some(b) if relevance.body_counts(&b) => {}
+                        _ => continue,
+                    }
+                }
+                raster::rasterise_body_where(
+                    cam,
+                    mesh,
+                    cluster.faces.clone(),
+                    &s.scored,
+                    [CLASS_BODY, CLASS_BOI],
+                    &mut s.target,
+                    |b| relevance.body_counts(b),
+                );
+            }
+        }
+    }
 }
 
 /// The nine bins over the whole mask: counted inside the target, derived outside it.
@@ -233,6 +314,7 @@ impl EnergyEngine for CpuEnergy {
                         mask_totals(mask, Arch::Upper),
                         mask_totals(mask, Arch::Lower),
                     ],
+                    tiles: LabelledTiles::new(mask, UPPER_BIT | LOWER_BIT),
                     mask: mask.clone(),
                 })
             })

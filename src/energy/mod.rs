@@ -3,11 +3,14 @@
 //! [`Energy`] (nine counts per camera: mask none/own/other x class) out for each.
 
 pub mod backend;
+pub mod backfaces;
+pub mod clusters;
 pub mod cpu;
 pub mod gpu;
 #[doc(hidden)]
 pub mod hand_counted;
 pub mod raster;
+pub mod relevance;
 
 use crate::capture::{Arch, ArchPoses, Capture, FrameMasks, MaskMode, Mesh};
 use crate::error::Result;
@@ -19,9 +22,9 @@ pub use cpu::CpuEnergy;
 /// The paper's weight of the boundary term.
 pub const DEFAULT_LAMBDA: f64 = 0.4;
 
-/// Which part of each mask an evaluation renders and counts. Both give the same counts:
-/// outside the model's footprint every pixel is class none, so those bins follow from the
-/// mask's totals.
+/// Which part of each mask an evaluation renders and counts. `Footprint` and `FullFrame` give
+/// the same counts: outside the model's footprint every pixel is class none, so those bins
+/// follow from the mask's totals. `Energy` gives the same energy, cross and area error.
 #[derive(Debug, Clone, Copy, Default, PartialEq, Eq, clap::ValueEnum)]
 pub enum Region {
     /// Only the pixels the arch (and, in combined mode, the other arch) can cover.
@@ -29,6 +32,11 @@ pub enum Region {
     Footprint,
     /// Every pixel of the mask (for comparison).
     FullFrame,
+    /// The footprint, drawing only what can change the energy (the CPU reference; the GPU
+    /// engine draws the footprint): body faces off the labelled pixels and away from the
+    /// boundary of interest are skipped (`relevance`), so the bins of body pixels off the
+    /// mask come out low. Uncovered, BOI outside, cross and area error are exact.
+    Energy,
 }
 
 /// Mask states of a pixel for the scored arch.

@@ -7,6 +7,7 @@
 //! Pixel convention: OpenCV's, the centre of pixel (x, y) is at (x, y); framebuffer
 //! coordinates are those plus 0.5.
 
+use super::backfaces::AwaySign;
 use crate::capture::Mesh;
 use crate::geometry::{Camera, Pose};
 
@@ -115,22 +116,35 @@ impl Target {
     }
 }
 
+/// A rigid transform as an f32 3 x 4 matrix (as a GPU would hold it).
+#[derive(Debug, Clone, Copy, Default)]
+struct Affine([[f32; 4]; 3]);
+
+impl Affine {
+    fn new(pose: &Pose) -> Self {
+        let r = pose.rotation.matrix();
+        let t = pose.translation;
+        Affine(std::array::from_fn(|i| {
+            [
+                r[(i, 0)] as f32,
+                r[(i, 1)] as f32,
+                r[(i, 2)] as f32,
+                t[i] as f32,
+            ]
+        }))
+    }
+
+    fn apply(&self, p: &[f32; 3]) -> [f32; 3] {
+        let m = &self.0;
+        std::array::from_fn(|i| m[i][0] * p[0] + m[i][1] * p[1] + m[i][2] * p[2] + m[i][3])
+    }
+}
+
 /// Vertices of a mesh in camera coordinates (f32, as a GPU would hold them).
 pub fn to_camera_space(mesh: &Mesh, camera_from_model: &Pose, out: &mut Vec<[f32; 3]>) {
-    let r = camera_from_model.rotation.matrix();
-    let t = camera_from_model.translation;
-    let m: [[f32; 4]; 3] = std::array::from_fn(|i| {
-        [
-            r[(i, 0)] as f32,
-            r[(i, 1)] as f32,
-            r[(i, 2)] as f32,
-            t[i] as f32,
-        ]
-    });
+    let m = Affine::new(camera_from_model);
     out.clear();
-    out.extend(mesh.positions.iter().map(|p| {
-        std::array::from_fn(|i| m[i][0] * p[0] + m[i][1] * p[1] + m[i][2] * p[2] + m[i][3])
-    }));
+    out.extend(mesh.positions.iter().map(|p| m.apply(p)));
 }
 
 /// A conservative pixel rectangle a set of camera-space points can touch (e.g. a bounding
@@ -172,11 +186,14 @@ pub fn footprint(cam: &Camera, points: &[[f32; 3]]) -> Rect {
 /// framebuffer positions, each projected once.
 #[derive(Debug, Clone, Default)]
 pub struct Placed {
+    camera_from_model: Affine,
     pub points: Vec<[f32; 3]>,
     /// `None` behind the near plane or outside the guard band.
     projected: Vec<Option<Snapped>>,
     /// Some vertex is behind the near plane (its triangles are clipped).
     crosses_near: bool,
+    /// Faces of this sign are left out (see `backfaces`).
+    away: Option<AwaySign>,
 }
 
 /// A vertex's snapped framebuffer position (1/256 pixel units; inside the guard band these
@@ -186,10 +203,15 @@ type Snapped = (i32, i32, f32);
 impl Placed {
     /// Transform and project every vertex of `mesh` (compact it first: see `Mesh::compacted`).
     pub fn place(&mut self, cam: &Camera, mesh: &Mesh, camera_from_model: &Pose) {
-        to_camera_space(mesh, camera_from_model, &mut self.points);
+        self.camera_from_model = Affine::new(camera_from_model);
+        let m = self.camera_from_model;
+        self.points.clear();
+        self.points
+            .extend(mesh.positions.iter().map(|p| m.apply(p)));
         let proj = Projector::new(cam);
         self.projected.clear();
         self.crosses_near = false;
+        self.away = None;
         for p in &self.points {
             if (p[2] as f64) < NEAR_MM {
                 self.crosses_near = true;
@@ -200,15 +222,39 @@ impl Placed {
         }
     }
 
+    /// Leave out the faces turned away from the camera, for a closed mesh (`sign` from
+    /// [`away_sign`](super::backfaces::away_sign)); not when the mesh crosses the near plane.
+    pub fn leave_out_faces_turned_away(&mut self, sign: Option<AwaySign>) {
+        self.away = sign.filter(|_| !self.crosses_near);
+    }
+
     /// The pixels whose centres the placed mesh can cover, exactly (from the snapped
     /// positions); the whole image when part of it is behind the near plane.
     pub fn footprint(&self, cam: &Camera) -> Rect {
+        self.footprint_of(cam, self.projected.iter().flatten())
+    }
+
+    /// A conservative pixel rectangle that a model-space box (its corners), placed as the
+    /// mesh is, can touch (see [`footprint`]).
+    pub fn footprint_of_box(&self, cam: &Camera, corners: &[[f32; 3]; 8]) -> Rect {
+        footprint(cam, &corners.map(|p| self.camera_from_model.apply(&p)))
+    }
+
+    /// [`Placed::footprint`] of some of the vertices (`vertices`: indices into the mesh).
+    pub fn footprint_of_vertices(&self, cam: &Camera, vertices: &[u32]) -> Rect {
+        let projected = vertices
+            .iter()
+            .filter_map(|&i| self.projected[i as usize].as_ref());
+        self.footprint_of(cam, projected)
+    }
+
+    fn footprint_of<'a>(&self, cam: &Camera, projected: impl Iterator<Item = &'a Snapped>) -> Rect {
         if self.crosses_near {
             return Rect::full(cam.width, cam.height);
         }
         let mut lo = (i64::MAX, i64::MAX);
         let mut hi = (i64::MIN, i64::MIN);
-        for &(x, y, _) in self.projected.iter().flatten() {
+        for &(x, y, _) in projected {
             let (x, y) = (x as i64, y as i64);
             lo = (lo.0.min(x), lo.1.min(y));
             hi = (hi.0.max(x), hi.1.max(y));
@@ -254,16 +300,45 @@ pub fn rasterise(
     class_boi: u8,
     target: &mut Target,
 ) {
+    let faces = 0..mesh.triangles.len();
+    rasterise_body_where(
+        cam,
+        mesh,
+        faces,
+        placed,
+        [class_body, class_boi],
+        target,
+        |_| true,
+    );
+}
+
+/// [`rasterise`] for some of the faces, skipping the body faces whose pixel bounds `keep`
+/// turns down (BOI faces and faces clipped at the near plane are always drawn). `classes`:
+/// body, BOI.
+pub fn rasterise_body_where(
+    cam: &Camera,
+    mesh: &Mesh,
+    faces: std::ops::Range<usize>,
+    placed: &Placed,
+    [class_body, class_boi]: [u8; 2],
+    target: &mut Target,
+    keep: impl Fn(&Bounds) -> bool,
+) {
     let Some(rect) = target.rect else { return };
     if rect.area() == 0 {
         return;
     }
     let proj = Projector::new(cam);
-    for (tri, &is_boi) in mesh.triangles.iter().zip(&mesh.boi) {
+    for (tri, &is_boi) in mesh.triangles[faces.clone()].iter().zip(&mesh.boi[faces]) {
         let class = if is_boi { class_boi } else { class_body };
         let s = tri.map(|i| placed.projected[i as usize]);
         if let [Some(a), Some(b), Some(c)] = s {
-            raster_triangle([a, b, c], class, rect, target);
+            let v = [a, b, c];
+            if let Some(bounds) = Bounds::of(&v, rect)
+                && (is_boi || keep(&bounds))
+            {
+                raster_triangle(v, bounds, class, placed.away, rect, target);
+            }
             continue;
         }
         if !placed.crosses_near {
@@ -279,7 +354,10 @@ pub fn rasterise(
             .filter_map(|p| proj.project(p))
             .collect();
         for k in 1..poly.len().saturating_sub(1) {
-            raster_triangle([poly[0], poly[k], poly[k + 1]], class, rect, target);
+            let v = [poly[0], poly[k], poly[k + 1]];
+            if let Some(bounds) = Bounds::of(&v, rect) {
+                raster_triangle(v, bounds, class, None, rect, target);
+            }
         }
     }
 }
@@ -346,19 +424,62 @@ fn is_top_left(dx: i64, dy: i64) -> bool {
     (dy == 0 && dx > 0) || dy < 0
 }
 
-fn raster_triangle(v: [Snapped; 3], class: u8, rect: Rect, target: &mut Target) {
-    let [mut a, mut b, c] = v.map(|(x, y, inv_z)| (x as i64, y as i64, inv_z));
-    // Pixels whose centres (x·256 + 128) lie within the snapped bounds, within the target.
-    // Most of a scan's triangles are smaller than a pixel and cover no centre: they end here.
-    let px0 = ceil_div(a.0.min(b.0).min(c.0) - HALF_PIXEL).max(rect.x0 as i64);
-    let px1 = floor_div(a.0.max(b.0).max(c.0) - HALF_PIXEL).min((rect.x0 + rect.width) as i64 - 1);
-    let py0 = ceil_div(a.1.min(b.1).min(c.1) - HALF_PIXEL).max(rect.y0 as i64);
-    let py1 = floor_div(a.1.max(b.1).max(c.1) - HALF_PIXEL).min((rect.y0 + rect.height) as i64 - 1);
-    if px0 > px1 || py0 > py1 {
-        return;
+/// The pixels whose centres lie within a triangle's snapped bounds, within a target:
+/// `x0..=x1` by `y0..=y1`, in image pixels.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub struct Bounds {
+    pub x0: i64,
+    pub x1: i64,
+    pub y0: i64,
+    pub y1: i64,
+}
+
+impl Bounds {
+    /// `None` when no pixel centre of `rect` lies within the bounds: most of a scan's
+    /// triangles are smaller than a pixel and end here.
+    fn of(v: &[Snapped; 3], rect: Rect) -> Option<Bounds> {
+        let xs = v.map(|p| p.0 as i64);
+        let ys = v.map(|p| p.1 as i64);
+        let min = |c: [i64; 3]| c[0].min(c[1]).min(c[2]);
+        let max = |c: [i64; 3]| c[0].max(c[1]).max(c[2]);
+        let b = Bounds {
+            x0: ceil_div(min(xs) - HALF_PIXEL).max(rect.x0 as i64),
+            x1: floor_div(max(xs) - HALF_PIXEL).min((rect.x0 + rect.width) as i64 - 1),
+            y0: ceil_div(min(ys) - HALF_PIXEL).max(rect.y0 as i64),
+            y1: floor_div(max(ys) - HALF_PIXEL).min((rect.y0 + rect.height) as i64 - 1),
+        };
+        (b.x0 <= b.x1 && b.y0 <= b.y1).then_some(b)
     }
+
+    /// The pixels of a rectangle (`None` when it is empty).
+    pub fn of_rect(r: &Rect) -> Option<Bounds> {
+        (r.area() > 0).then(|| Bounds {
+            x0: r.x0 as i64,
+            x1: (r.x0 + r.width) as i64 - 1,
+            y0: r.y0 as i64,
+            y1: (r.y0 + r.height) as i64 - 1,
+        })
+    }
+}
+
+/// Draw a triangle (unless it faces the way `away` leaves out).
+fn raster_triangle(
+    v: [Snapped; 3],
+    bounds: Bounds,
+    class: u8,
+    away: Option<AwaySign>,
+    rect: Rect,
+    target: &mut Target,
+) {
+    let [mut a, mut b, c] = v.map(|(x, y, inv_z)| (x as i64, y as i64, inv_z));
+    let Bounds {
+        x0: px0,
+        x1: px1,
+        y0: py0,
+        y1: py1,
+    } = bounds;
     let mut area = (b.0 - a.0) * (c.1 - a.1) - (b.1 - a.1) * (c.0 - a.0);
-    if area == 0 {
+    if area == 0 || away.is_some_and(|s| s.is_away(area)) {
         return;
     }
     if area < 0 {

@@ -84,3 +84,53 @@ pub fn edit_json(path: &Path, f: impl FnOnce(&mut serde_json::Value)) {
     f(&mut v);
     std::fs::write(path, serde_json::to_string_pretty(&v).unwrap()).unwrap();
 }
+
+/// The `Energy` region against the `Footprint` region on every frame of a capture, for
+/// candidates up to `offset` (degrees and mm) from the truth: the same energy, cross and
+/// area error for every candidate, while body pixels off the mask are skipped (the energy
+/// region counts fewer of them in most camera views). Returns how many were compared.
+pub fn energy_region_matches_footprint(capture: &jawtrack::capture::Capture, offset: f64) -> usize {
+    use jawtrack::capture::Arch;
+    use jawtrack::energy::{CpuEnergy, EnergyEngine, MASK_NONE, Region, Scene};
+    use rand::{RngExt, SeedableRng};
+
+    let scene = Scene::from_capture(capture);
+    let mut footprint = CpuEnergy::with_region(scene.clone(), Region::Footprint);
+    let mut energy = CpuEnergy::with_region(scene, Region::Energy);
+    let mut rng = rand_chacha::ChaCha8Rng::seed_from_u64(11);
+    let (mut compared, mut views, mut skipped) = (0, 0, 0);
+    for f in capture.frames() {
+        let masks = capture.load_masks(f).unwrap();
+        footprint.set_frame(&masks).unwrap();
+        energy.set_frame(&masks).unwrap();
+        let truth = capture.gt_poses(f).unwrap();
+        for arch in Arch::BOTH {
+            let mut candidates = vec![truth];
+            candidates.extend((0..12).map(|_| {
+                let d: [f64; 6] = std::array::from_fn(|k| {
+                    let a = if k < 3 { offset.to_radians() } else { offset };
+                    rng.random_range(-a..=a)
+                });
+                truth.with(arch, truth.get(arch).with_euler_offset(&d))
+            }));
+            let a = footprint.evaluate(arch, &candidates).unwrap();
+            let b = energy.evaluate(arch, &candidates).unwrap();
+            for (k, (a, b)) in a.iter().zip(&b).enumerate() {
+                for (x, y) in a.cameras.iter().zip(&b.cameras) {
+                    let read = |c: &jawtrack::energy::Counts| {
+                        (c.uncovered(), c.boi_outside(), c.cross(), c.mask_pixels())
+                    };
+                    assert_eq!(read(x), read(y), "frame {f} {arch:?} candidate {k}");
+                    skipped += (y.bin(MASK_NONE, 1) < x.bin(MASK_NONE, 1)) as usize;
+                    views += 1;
+                }
+                compared += 1;
+            }
+        }
+    }
+    eprintln!(
+        "energy region: {compared} candidates, body faces skipped in {skipped} of {views} camera views"
+    );
+    assert!(skipped * 2 > views, "{skipped} of {views}");
+    compared
+}

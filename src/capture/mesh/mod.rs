@@ -15,6 +15,19 @@ use crate::error::{Error, Result};
 pub use boi::{BoiMarking, mark_boi};
 pub use obj::write_obj;
 
+/// [`Mesh::signed_volume`] of some faces.
+pub fn signed_volume(positions: &[[f32; 3]], triangles: &[[u32; 3]]) -> f64 {
+    let det: f64 = triangles
+        .iter()
+        .map(|t| {
+            let [a, b, c] = t.map(|v| positions[v as usize].map(f64::from));
+            a[0] * (b[1] * c[2] - b[2] * c[1]) - a[1] * (b[0] * c[2] - b[2] * c[0])
+                + a[2] * (b[0] * c[1] - b[1] * c[0])
+        })
+        .sum();
+    det / 6.0
+}
+
 #[derive(Debug, Clone, PartialEq)]
 pub struct Mesh {
     pub positions: Vec<[f32; 3]>,
@@ -203,6 +216,12 @@ impl Mesh {
             mean,
             order.map(|i| eigen.eigenvectors.column(i).into_owned()),
         )
+    }
+
+    /// The volume the faces enclose, signed: positive when they turn outwards (right-hand rule
+    /// over each face's vertex order), negative inwards; meaningful for a closed surface.
+    pub fn signed_volume(&self) -> f64 {
+        signed_volume(&self.positions, &self.triangles)
     }
 
     /// Axis-aligned bounds (min, max) of the vertices used by faces.

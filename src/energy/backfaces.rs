@@ -1,0 +1,206 @@
+//! Back faces of closed meshes, which the CPU reference can leave out ([`Region::Energy`]).
+//!
+//! A closed, consistently oriented mesh (every edge shared by exactly two faces that run it in
+//! opposite directions) seen from outside covers each pixel centre with as many faces facing
+//! the camera as facing away: projected to the image, the surface is a closed cycle, whose
+//! degree is zero at every point off its edges. That holds for the rasterised picture too, as
+//! long as facing is read from the *snapped* triangle's signed area and edges follow one fill
+//! rule (the top-left rule gives an edge's pixel centres to both faces of a fold, or to
+//! neither). So drawing only the faces towards the camera covers exactly the same pixels. What
+//! a pixel shows (body or BOI; in front of the other arch or not) is the nearest face; along
+//! a ray from outside the first face met always faces the camera, so only a depth near-tie at
+//! a silhouette can differ. Open meshes (most raw scans) and meshes crossing the near plane are
+//! drawn whole.
+//!
+//! [`Region::Energy`]: super::Region::Energy
+
+use std::collections::HashMap;
+
+use crate::capture::Mesh;
+use crate::capture::mesh::signed_volume;
+
+/// Which snapped signed area (see `raster`) marks a face turned away from the camera.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub enum AwaySign {
+    Positive,
+    Negative,
+}
+
+impl AwaySign {
+    /// Whether a face of snapped signed area `area` (y down) faces away.
+    #[inline]
+    pub fn is_away(self, area: i64) -> bool {
+        match self {
+            AwaySign::Positive => area > 0,
+            AwaySign::Negative => area < 0,
+        }
+    }
+}
+
+/// For a closed, consistently oriented mesh whose parts (connected pieces) all turn the same
+/// way, the sign of its faces turned away from a camera outside it; `None` for any other mesh.
+///
+/// With image y pointing down and the camera looking along +z, a face whose normal (right-hand
+/// rule over its vertex order) points away from the camera has a positive snapped area; parts
+/// whose normals point inwards (negative enclosed volume) flip that. A mesh with parts turned
+/// both ways gets `None`: for an inside-out part, the first face a ray meets faces away.
+pub fn away_sign(mesh: &Mesh) -> Option<AwaySign> {
+    let mut edges: HashMap<(u32, u32), u32> = HashMap::with_capacity(mesh.triangles.len() * 3);
+    for t in &mesh.triangles {
+        if t[0] == t[1] || t[1] == t[2] || t[2] == t[0] {
+            return None;
+        }
+        for k in 0..3 {
+            *edges.entry((t[k], t[(k + 1) % 3])).or_default() += 1;
+        }
+    }
+    let closed = edges
+        .iter()
+        .all(|(&(a, b), &n)| n == 1 && edges.get(&(b, a)) == Some(&1));
+    if !closed || mesh.triangles.is_empty() {
+        return None;
+    }
+    let part = parts(mesh);
+    let mut volumes = vec![0.0; mesh.positions.len()];
+    for t in &mesh.triangles {
+        volumes[part[t[0] as usize] as usize] += signed_volume(&mesh.positions, &[*t]);
+    }
+    let (outwards, inwards) = (
+        volumes.iter().filter(|&&v| v > 0.0).count(),
+        volumes.iter().filter(|&&v| v < 0.0).count(),
+    );
+    match (outwards, inwards) {
+        (1.., 0) => Some(AwaySign::Positive),
+        (0, 1..) => Some(AwaySign::Negative),
+        _ => None,
+    }
+}
+
+/// Per vertex, a representative vertex of its connected part (union-find over the faces).
+fn parts(mesh: &Mesh) -> Vec<u32> {
+    let mut parent: Vec<u32> = (0..mesh.positions.len() as u32).collect();
+    fn root(parent: &mut [u32], mut v: u32) -> u32 {
+        while parent[v as usize] != v {
+            parent[v as usize] = parent[parent[v as usize] as usize];
+            v = parent[v as usize];
+        }
+        v
+    }
+    for t in &mesh.triangles {
+        let r = root(&mut parent, t[0]);
+        for &v in &t[1..] {
+            let s = root(&mut parent, v);
+            parent[s as usize] = r;
+        }
+    }
+    (0..parent.len() as u32)
+        .map(|v| root(&mut parent, v))
+        .collect()
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    /// A unit cube, outward faces (right-hand rule).
+    fn cube() -> Mesh {
+        let positions = (0..8)
+            .map(|i| [(i & 1) as f32, (i >> 1 & 1) as f32, (i >> 2 & 1) as f32])
+            .collect();
+        let quads = [
+            [0, 2, 3, 1], // z = 0, normal -z
+            [4, 5, 7, 6], // z = 1, +z
+            [0, 1, 5, 4], // y = 0, -y
+            [2, 6, 7, 3], // y = 1, +y
+            [0, 4, 6, 2], // x = 0, -x
+            [1, 3, 7, 5], // x = 1, +x
+        ];
+        let triangles: Vec<[u32; 3]> = quads
+            .iter()
+            .flat_map(|q| [[q[0], q[1], q[2]], [q[0], q[2], q[3]]])
+            .collect();
+        Mesh {
+            boi: vec![false; triangles.len()],
+            positions,
+            triangles,
+        }
+    }
+
+    #[test]
+    fn closed_meshes_get_a_sign_open_or_inconsistent_ones_none() {
+        let mut m = cube();
+        assert!((m.signed_volume() - 1.0).abs() < 1e-12);
+        assert_eq!(away_sign(&m), Some(AwaySign::Positive));
+        for t in &mut m.triangles {
+            t.swap(1, 2);
+        }
+        assert_eq!(away_sign(&m), Some(AwaySign::Negative));
+        let mut open = cube();
+        open.triangles.pop();
+        open.boi.pop();
+        assert_eq!(away_sign(&open), None);
+        let mut flipped_one = cube();
+        flipped_one.triangles[0].swap(1, 2);
+        assert_eq!(away_sign(&flipped_one), None);
+        // Two cubes apart: both outwards, both inwards, or one of each.
+        let two = |flip_second: bool| {
+            let mut m = cube();
+            let second = cube();
+            m.positions
+                .extend(second.positions.iter().map(|p| [p[0] + 3.0, p[1], p[2]]));
+            m.triangles.extend(second.triangles.iter().map(|t| {
+                let t = t.map(|v| v + 8);
+                if flip_second { [t[0], t[2], t[1]] } else { t }
+            }));
+            m.boi.extend(second.boi);
+            m
+        };
+        assert_eq!(away_sign(&two(false)), Some(AwaySign::Positive));
+        assert_eq!(away_sign(&two(true)), None);
+    }
+
+    #[test]
+    fn leaving_out_the_faces_turned_away_draws_the_same_picture() {
+        use crate::energy::raster::{self, CLASS_BODY, CLASS_BOI, Placed, Rect, Target};
+        use crate::geometry::{Camera, Pose};
+        let cam = Camera {
+            name: "c".into(),
+            width: 100,
+            height: 80,
+            fx: 100.0,
+            fy: 100.0,
+            cx: 50.0,
+            cy: 40.0,
+            distortion: [0.0; 5],
+            camera_from_world: Pose::IDENTITY,
+        };
+        // A 20 mm cube 100 mm away, turned so that three faces show; the face at the back
+        // (z = 1 before scaling, faces 2 and 3) is BOI: hidden.
+        let mut m = cube();
+        m.positions
+            .iter_mut()
+            .for_each(|p| *p = p.map(|c| (c - 0.5) * 20.0));
+        m.boi[2] = true;
+        m.boi[3] = true;
+        let pose = Pose::from_euler_tuple(&[0.4, 0.5, 0.1, 3.0, -2.0, 100.0]);
+        let draw = |away: Option<AwaySign>| {
+            let mut placed = Placed::default();
+            placed.place(&cam, &m, &pose);
+            placed.leave_out_faces_turned_away(away);
+            let mut t = Target::default();
+            t.reset(Rect::full(100, 80));
+            raster::rasterise(&cam, &m, &placed, CLASS_BODY, CLASS_BOI, &mut t);
+            t.class
+        };
+        let all = draw(None);
+        let covered = all.iter().filter(|&&c| c != 0).count();
+        assert!(covered > 300, "{covered}");
+        assert!(!all.contains(&CLASS_BOI), "the back face is hidden");
+        assert_eq!(draw(away_sign(&m)), all);
+        // Leaving out the faces towards the camera instead covers the same pixels (each is
+        // covered by as many faces each way) but shows the back, BOI included.
+        let wrong = draw(Some(AwaySign::Negative));
+        assert_eq!(wrong.iter().filter(|&&c| c != 0).count(), covered);
+        assert!(wrong.contains(&CLASS_BOI));
+    }
+}
