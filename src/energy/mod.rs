@@ -34,8 +34,10 @@ pub enum Region {
     FullFrame,
     /// The footprint, drawing only what can change the energy (the CPU reference; the GPU
     /// engine draws the footprint): body faces off the labelled pixels and away from the
-    /// boundary of interest are skipped (`relevance`), so the bins of body pixels off the
-    /// mask come out low. Uncovered, BOI outside, cross and area error are exact.
+    /// boundary of interest are skipped (`relevance`, by cluster then by face: `clusters`),
+    /// and so are the faces of closed meshes turned away from the camera (`backfaces`). The
+    /// bins of body pixels off the mask come out low; uncovered, BOI outside, cross and area
+    /// error are those of `Footprint`.
     Energy,
 }
 

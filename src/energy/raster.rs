@@ -1,8 +1,9 @@
 //! The CPU reference rasteriser, written to the Vulkan rasterisation rules so the GPU engine
 //! can match it pixel for pixel: vertices snapped to 1/256 pixel (8 subpixel bits), samples at
 //! pixel centres, integer edge functions with the top-left fill rule, triangles clipped at a
-//! near plane, no face culling (scans are open shells), and a depth test on 1/z interpolated
-//! linearly in screen space (what a perspective depth buffer orders by).
+//! near plane, no face culling unless asked for (`Placed::leave_out_faces_turned_away`, for
+//! closed meshes only: see `backfaces`), and a depth test on 1/z interpolated linearly in
+//! screen space (what a perspective depth buffer orders by).
 //!
 //! Pixel convention: OpenCV's, the centre of pixel (x, y) is at (x, y); framebuffer
 //! coordinates are those plus 0.5.
@@ -334,10 +335,15 @@ pub fn rasterise_body_where(
         let s = tri.map(|i| placed.projected[i as usize]);
         if let [Some(a), Some(b), Some(c)] = s {
             let v = [a, b, c];
+            // Facing first (about half the faces of a closed mesh), then the pixels.
+            let area = signed_area(&v);
+            if area == 0 || placed.away.is_some_and(|s| s.is_away(area)) {
+                continue;
+            }
             if let Some(bounds) = Bounds::of(&v, rect)
                 && (is_boi || keep(&bounds))
             {
-                raster_triangle(v, bounds, class, placed.away, rect, target);
+                raster_triangle(v, area, bounds, class, rect, target);
             }
             continue;
         }
@@ -356,7 +362,7 @@ pub fn rasterise_body_where(
         for k in 1..poly.len().saturating_sub(1) {
             let v = [poly[0], poly[k], poly[k + 1]];
             if let Some(bounds) = Bounds::of(&v, rect) {
-                raster_triangle(v, bounds, class, None, rect, target);
+                raster_triangle(v, signed_area(&v), bounds, class, rect, target);
             }
         }
     }
@@ -462,12 +468,18 @@ impl Bounds {
     }
 }
 
-/// Draw a triangle (unless it faces the way `away` leaves out).
+/// Twice the signed area of a snapped triangle (1/256-pixel units squared; y down).
+fn signed_area(v: &[Snapped; 3]) -> i64 {
+    let [a, b, c] = v.map(|(x, y, _)| (x as i64, y as i64));
+    (b.0 - a.0) * (c.1 - a.1) - (b.1 - a.1) * (c.0 - a.0)
+}
+
+/// Draw a triangle of signed area `area` ([`signed_area`]) within its pixel bounds.
 fn raster_triangle(
     v: [Snapped; 3],
+    mut area: i64,
     bounds: Bounds,
     class: u8,
-    away: Option<AwaySign>,
     rect: Rect,
     target: &mut Target,
 ) {
@@ -478,8 +490,7 @@ fn raster_triangle(
         y0: py0,
         y1: py1,
     } = bounds;
-    let mut area = (b.0 - a.0) * (c.1 - a.1) - (b.1 - a.1) * (c.0 - a.0);
-    if area == 0 || away.is_some_and(|s| s.is_away(area)) {
+    if area == 0 {
         return;
     }
     if area < 0 {

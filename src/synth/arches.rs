@@ -6,7 +6,7 @@ use nalgebra::Vector3;
 
 use super::rings::stitch_rings;
 use crate::capture::Mesh;
-use crate::capture::mesh::{BoiMarking, mark_boi, signed_volume};
+use crate::capture::mesh::{BoiMarking, mark_boi};
 use crate::geometry::Pose;
 
 /// One crown type: mesiodistal width, buccolingual depth, crown height (mm), and how its
@@ -159,28 +159,14 @@ fn add_crown(mesh: &mut Mesh, t: &Tooth, x: f64, z: f64, heading: f64, upper: bo
     }
     stitch_rings(mesh, base, RINGS + 1, SEGMENTS);
     let ring = |r: usize, k: usize| base + (r * SEGMENTS + k % SEGMENTS) as u32;
-    // Caps: the cervical end and the tip, fans around a centre vertex, each run against its
-    // ring's direction in the side faces next to it, so that the crown is a closed,
-    // consistently oriented surface (see `energy::backfaces`).
+    // Caps: the cervical end and the tip, fans around a centre vertex.
     for (r, y_end) in [(0, -tip_dir * t.height), (RINGS, tip_dir * 0.3)] {
         let c = mesh.positions.len() as u32;
         mesh.positions.push([x as f32, y_end as f32, z as f32]);
         for k in 0..SEGMENTS {
-            mesh.triangles.push(if r == 0 {
-                [c, ring(r, k + 1), ring(r, k)]
-            } else {
-                [c, ring(r, k), ring(r, k + 1)]
-            });
+            mesh.triangles.push([c, ring(r, k + 1), ring(r, k)]);
             mesh.boi.push(false);
         }
-    }
-    // Faces turned outwards, as scanners write them (the local axes are mirrored on one
-    // side of the arch and for the upper arch, which turns some crowns inside out).
-    let first_face = mesh.triangles.len() - (2 * RINGS * SEGMENTS + 2 * SEGMENTS);
-    if signed_volume(&mesh.positions, &mesh.triangles[first_face..]) < 0.0 {
-        mesh.triangles[first_face..]
-            .iter_mut()
-            .for_each(|t| t.swap(1, 2));
     }
 }
 
@@ -227,15 +213,6 @@ mod tests {
             let per_crown = 2 * RINGS * SEGMENTS + 2 * SEGMENTS;
             assert_eq!(m.triangles.len(), 14 * per_crown);
             m.validate(std::path::Path::new("procedural")).unwrap();
-            // Closed crowns, each turned outwards: the CPU reference may leave out back faces.
-            for k in 0..14 {
-                let crown = &m.triangles[k * per_crown..(k + 1) * per_crown];
-                assert!(signed_volume(&m.positions, crown) > 10.0, "crown {k}");
-            }
-            assert_eq!(
-                crate::energy::backfaces::away_sign(&m),
-                Some(crate::energy::backfaces::AwaySign::Positive)
-            );
             let (lo, hi) = m.bounds();
             assert!(
                 hi[0] - lo[0] > 45.0 && hi[0] - lo[0] < 70.0,
