@@ -141,13 +141,6 @@ impl Affine {
     }
 }
 
-/// Vertices of a mesh in camera coordinates (f32, as a GPU would hold them).
-pub fn to_camera_space(mesh: &Mesh, camera_from_model: &Pose, out: &mut Vec<[f32; 3]>) {
-    let m = Affine::new(camera_from_model);
-    out.clear();
-    out.extend(mesh.positions.iter().map(|p| m.apply(p)));
-}
-
 /// A conservative pixel rectangle a set of camera-space points can touch (e.g. a bounding
 /// box's corners), clamped to the image; the whole image if a point is behind the near plane.
 pub fn footprint(cam: &Camera, points: &[[f32; 3]]) -> Rect {
@@ -203,6 +196,7 @@ type Snapped = (i32, i32, f32);
 
 impl Placed {
     /// Transform and project every vertex of `mesh` (compact it first: see `Mesh::compacted`).
+    /// Camera-space positions are f32, as a GPU would hold them.
     pub fn place(&mut self, cam: &Camera, mesh: &Mesh, camera_from_model: &Pose) {
         self.camera_from_model = Affine::new(camera_from_model);
         let m = self.camera_from_model;

@@ -125,13 +125,7 @@ impl GpuMesh {
         }
         let boi = mesh.boi_face_count() as u32 * 3;
         let (lo, hi) = mesh.bounds();
-        let corners = std::array::from_fn(|i| {
-            [
-                if i & 1 == 0 { lo[0] } else { hi[0] },
-                if i & 2 == 0 { lo[1] } else { hi[1] },
-                if i & 4 == 0 { lo[2] } else { hi[2] },
-            ]
-        });
+        let corners = crate::energy::clusters::box_corners(lo, hi);
         let radius = corners
             .iter()
             .map(|c| (c[0] as f64).hypot(c[1] as f64).hypot(c[2] as f64))
