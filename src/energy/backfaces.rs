@@ -76,6 +76,75 @@ pub fn away_sign(mesh: &Mesh) -> Option<AwaySign> {
     }
 }
 
+/// The mesh with its faces re-wound so that it qualifies for [`away_sign`] with every part
+/// turned outwards, when that is possible: every edge shared by exactly two faces and each
+/// part orientable. Winding changes no pixel the rasteriser draws (it reads facing only to
+/// leave faces out), so a closed mesh written with some faces the wrong way round (the
+/// procedural crowns' tip caps, or another program's export) can still have its back faces
+/// left out. `None` for an open or non-manifold mesh, or a non-orientable one.
+pub fn oriented_outwards(mesh: &Mesh) -> Option<Mesh> {
+    // Faces on each undirected edge; a closed manifold has exactly two per edge.
+    let mut on_edge: HashMap<(u32, u32), Vec<usize>> = HashMap::new();
+    for (f, t) in mesh.triangles.iter().enumerate() {
+        if t[0] == t[1] || t[1] == t[2] || t[2] == t[0] {
+            return None;
+        }
+        for k in 0..3 {
+            let (a, b) = (t[k], t[(k + 1) % 3]);
+            on_edge.entry((a.min(b), a.max(b))).or_default().push(f);
+        }
+    }
+    if on_edge.values().any(|faces| faces.len() != 2) {
+        return None;
+    }
+    // Does face f run the edge a→b (rather than b→a)?
+    let runs = |t: &[u32; 3], a: u32, b: u32| (0..3).any(|k| t[k] == a && t[(k + 1) % 3] == b);
+    // Breadth-first over each part: a neighbour must run the shared edge the other way.
+    let mut triangles = mesh.triangles.clone();
+    let mut seen = vec![false; triangles.len()];
+    for start in 0..triangles.len() {
+        if seen[start] {
+            continue;
+        }
+        seen[start] = true;
+        let mut part = vec![start];
+        let mut next = 0;
+        while next < part.len() {
+            let f = part[next];
+            next += 1;
+            let t = triangles[f];
+            for k in 0..3 {
+                let (a, b) = (t[k], t[(k + 1) % 3]);
+                let g = on_edge[&(a.min(b), a.max(b))]
+                    .iter()
+                    .copied()
+                    .find(|&g| g != f)?;
+                let consistent = !runs(&triangles[g], a, b);
+                if seen[g] {
+                    if !consistent {
+                        return None; // not orientable
+                    }
+                    continue;
+                }
+                if !consistent {
+                    triangles[g].swap(1, 2);
+                }
+                seen[g] = true;
+                part.push(g);
+            }
+        }
+        let faces: Vec<[u32; 3]> = part.iter().map(|&f| triangles[f]).collect();
+        if signed_volume(&mesh.positions, &faces) < 0.0 {
+            part.iter().for_each(|&f| triangles[f].swap(1, 2));
+        }
+    }
+    Some(Mesh {
+        positions: mesh.positions.clone(),
+        triangles,
+        boi: mesh.boi.clone(),
+    })
+}
+
 /// Per vertex, a representative vertex of its connected part (union-find over the faces).
 fn parts(mesh: &Mesh) -> Vec<u32> {
     let mut parent: Vec<u32> = (0..mesh.positions.len() as u32).collect();
@@ -157,6 +226,39 @@ mod tests {
         };
         assert_eq!(away_sign(&two(false)), Some(AwaySign::Positive));
         assert_eq!(away_sign(&two(true)), None);
+    }
+
+    #[test]
+    fn closed_meshes_are_rewound_outwards_open_ones_are_not() {
+        // Some faces of one cube flipped, another cube inside out, apart.
+        let mut m = cube();
+        m.triangles[3].swap(1, 2);
+        m.triangles[8].swap(0, 1);
+        let second = cube();
+        m.positions
+            .extend(second.positions.iter().map(|p| [p[0] + 3.0, p[1], p[2]]));
+        m.triangles.extend(
+            second
+                .triangles
+                .iter()
+                .map(|t| [t[0] + 8, t[2] + 8, t[1] + 8]),
+        );
+        m.boi.extend(second.boi);
+        assert_eq!(away_sign(&m), None);
+        let o = oriented_outwards(&m).unwrap();
+        assert_eq!(away_sign(&o), Some(AwaySign::Positive));
+        assert!((o.signed_volume() - 2.0).abs() < 1e-9);
+        // The same faces, each with the same three vertices.
+        for (a, b) in m.triangles.iter().zip(&o.triangles) {
+            let (mut a, mut b) = (*a, *b);
+            a.sort();
+            b.sort();
+            assert_eq!(a, b);
+        }
+        let mut open = cube();
+        open.triangles.pop();
+        open.boi.pop();
+        assert!(oriented_outwards(&open).is_none());
     }
 
     #[test]

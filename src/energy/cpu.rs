@@ -8,7 +8,7 @@ use std::sync::{Arc, Mutex};
 
 use rayon::prelude::*;
 
-use super::backfaces::{AwaySign, away_sign};
+use super::backfaces::{self, AwaySign, away_sign};
 use super::clusters::{self, Cluster};
 use super::raster::{self, Bounds, CLASS_BODY, CLASS_BOI, Placed, Target};
 use super::relevance::{LabelledTiles, Relevance};
@@ -68,11 +68,15 @@ impl CpuEnergy {
 
     pub fn with_region(scene: Scene, region: Region) -> Self {
         let n = scene.cameras.len();
-        // Faces in spatial order, then vertices numbered by first use (`compacted`): what one
-        // cluster reads lies together in memory.
+        // Closed meshes wound outwards (see `backfaces`), faces in spatial order, then
+        // vertices numbered by first use (`compacted`): what one cluster reads lies together.
+        let prepare = |mesh: &Mesh| {
+            let mesh = backfaces::oriented_outwards(mesh).unwrap_or_else(|| mesh.clone());
+            clusters::spatially_sorted(&mesh)
+        };
         let scene = Scene {
-            upper: clusters::spatially_sorted(&scene.upper),
-            lower: clusters::spatially_sorted(&scene.lower),
+            upper: prepare(&scene.upper),
+            lower: prepare(&scene.lower),
             ..scene
         }
         .compacted();
