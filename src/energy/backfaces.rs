@@ -264,18 +264,8 @@ mod tests {
     #[test]
     fn leaving_out_the_faces_turned_away_draws_the_same_picture() {
         use crate::energy::raster::{self, CLASS_BODY, CLASS_BOI, Placed, Rect, Target};
-        use crate::geometry::{Camera, Pose};
-        let cam = Camera {
-            name: "c".into(),
-            width: 100,
-            height: 80,
-            fx: 100.0,
-            fy: 100.0,
-            cx: 50.0,
-            cy: 40.0,
-            distortion: [0.0; 5],
-            camera_from_world: Pose::IDENTITY,
-        };
+        use crate::geometry::Pose;
+        let cam = crate::energy::hand_counted::camera();
         // A 20 mm cube 100 mm away, turned so that three faces show; the face at the back
         // (z = 1 before scaling, faces 2 and 3) is BOI: hidden.
         let mut m = cube();
