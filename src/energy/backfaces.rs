@@ -45,34 +45,19 @@ impl AwaySign {
 /// whose normals point inwards (negative enclosed volume) flip that. A mesh with parts turned
 /// both ways gets `None`: for an inside-out part, the first face a ray meets faces away.
 pub fn away_sign(mesh: &Mesh) -> Option<AwaySign> {
-    let mut edges: HashMap<(u32, u32), u32> = HashMap::with_capacity(mesh.triangles.len() * 3);
-    for t in &mesh.triangles {
-        if t[0] == t[1] || t[1] == t[2] || t[2] == t[0] {
-            return None;
-        }
-        for k in 0..3 {
-            *edges.entry((t[k], t[(k + 1) % 3])).or_default() += 1;
-        }
-    }
-    let closed = edges
-        .iter()
-        .all(|(&(a, b), &n)| n == 1 && edges.get(&(b, a)) == Some(&1));
-    if !closed || mesh.triangles.is_empty() {
-        return None;
-    }
-    let part = parts(mesh);
-    let mut volumes = vec![0.0; mesh.positions.len()];
-    for t in &mesh.triangles {
-        volumes[part[t[0] as usize] as usize] += signed_volume(&mesh.positions, &[*t]);
-    }
-    let (outwards, inwards) = (
-        volumes.iter().filter(|&&v| v > 0.0).count(),
-        volumes.iter().filter(|&&v| v < 0.0).count(),
-    );
-    match (outwards, inwards) {
-        (1.., 0) => Some(AwaySign::Positive),
-        (0, 1..) => Some(AwaySign::Negative),
-        _ => None,
+    // Rewinding leaves every face of a mesh that already qualifies as it is, or turns every
+    // one of them (the same part order and start faces, each part flipped as a whole).
+    let outwards = oriented_outwards(mesh)?;
+    let turned = |t: &[u32; 3]| [t[0], t[2], t[1]];
+    if outwards.triangles == mesh.triangles {
+        Some(AwaySign::Positive)
+    } else if (outwards.triangles.iter())
+        .zip(&mesh.triangles)
+        .all(|(o, t)| *o == turned(t))
+    {
+        Some(AwaySign::Negative)
+    } else {
+        None
     }
 }
 
@@ -134,7 +119,11 @@ pub fn oriented_outwards(mesh: &Mesh) -> Option<Mesh> {
             }
         }
         let faces: Vec<[u32; 3]> = part.iter().map(|&f| triangles[f]).collect();
-        if signed_volume(&mesh.positions, &faces) < 0.0 {
+        let volume = signed_volume(&mesh.positions, &faces);
+        if volume == 0.0 {
+            return None; // no inside to turn away from
+        }
+        if volume < 0.0 {
             part.iter().for_each(|&f| triangles[f].swap(1, 2));
         }
     }
@@ -143,28 +132,6 @@ pub fn oriented_outwards(mesh: &Mesh) -> Option<Mesh> {
         triangles,
         boi: mesh.boi.clone(),
     })
-}
-
-/// Per vertex, a representative vertex of its connected part (union-find over the faces).
-fn parts(mesh: &Mesh) -> Vec<u32> {
-    let mut parent: Vec<u32> = (0..mesh.positions.len() as u32).collect();
-    fn root(parent: &mut [u32], mut v: u32) -> u32 {
-        while parent[v as usize] != v {
-            parent[v as usize] = parent[parent[v as usize] as usize];
-            v = parent[v as usize];
-        }
-        v
-    }
-    for t in &mesh.triangles {
-        let r = root(&mut parent, t[0]);
-        for &v in &t[1..] {
-            let s = root(&mut parent, v);
-            parent[s as usize] = r;
-        }
-    }
-    (0..parent.len() as u32)
-        .map(|v| root(&mut parent, v))
-        .collect()
 }
 
 #[cfg(test)]

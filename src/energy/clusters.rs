@@ -5,6 +5,7 @@
 use std::ops::Range;
 
 use crate::capture::Mesh;
+use crate::capture::mesh::bounds;
 
 /// Faces per cluster.
 pub const CLUSTER_FACES: usize = 32;
@@ -75,17 +76,7 @@ pub fn clusters(mesh: &Mesh) -> Vec<Cluster> {
         .step_by(CLUSTER_FACES)
         .map(|start| {
             let faces = start..(start + CLUSTER_FACES).min(mesh.triangles.len());
-            let mut lo = [f32::INFINITY; 3];
-            let mut hi = [f32::NEG_INFINITY; 3];
-            for t in &mesh.triangles[faces.clone()] {
-                for &v in t {
-                    let p = mesh.positions[v as usize];
-                    for k in 0..3 {
-                        lo[k] = lo[k].min(p[k]);
-                        hi[k] = hi[k].max(p[k]);
-                    }
-                }
-            }
+            let (lo, hi) = bounds(&mesh.positions, &mesh.triangles[faces.clone()]);
             Cluster {
                 corners: box_corners(lo, hi),
                 has_boi: mesh.boi[faces.clone()].iter().any(|&b| b),

@@ -8,7 +8,7 @@ use std::sync::{Arc, Mutex};
 
 use rayon::prelude::*;
 
-use super::backfaces::{self, AwaySign, away_sign};
+use super::backfaces::{self, AwaySign};
 use super::clusters::{self, Cluster};
 use super::raster::{self, Bounds, CLASS_BODY, CLASS_BOI, Placed, Target};
 use super::relevance::{LabelledTiles, Relevance};
@@ -70,13 +70,19 @@ impl CpuEnergy {
         let n = scene.cameras.len();
         // Closed meshes wound outwards (see `backfaces`), faces in spatial order, then
         // vertices numbered by first use (`compacted`): what one cluster reads lies together.
-        let prepare = |mesh: &Mesh| {
-            let mesh = backfaces::oriented_outwards(mesh).unwrap_or_else(|| mesh.clone());
-            clusters::spatially_sorted(&mesh)
+        // A rewound mesh's faces turned away have a positive snapped area.
+        let prepare = |mesh: &Mesh| match backfaces::oriented_outwards(mesh) {
+            Some(outwards) => (
+                clusters::spatially_sorted(&outwards),
+                Some(AwaySign::Positive),
+            ),
+            None => (clusters::spatially_sorted(mesh), None),
         };
+        let ((upper, away_upper), (lower, away_lower)) =
+            (prepare(&scene.upper), prepare(&scene.lower));
         let scene = Scene {
-            upper: prepare(&scene.upper),
-            lower: prepare(&scene.lower),
+            upper,
+            lower,
             ..scene
         }
         .compacted();
@@ -86,7 +92,7 @@ impl CpuEnergy {
                 clusters::clusters(&scene.upper),
                 clusters::clusters(&scene.lower),
             ],
-            away: [away_sign(&scene.upper), away_sign(&scene.lower)],
+            away: [away_upper, away_lower],
             scene,
             region,
             frame: (0..n).map(|_| None).collect(),

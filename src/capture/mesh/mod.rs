@@ -15,6 +15,22 @@ use crate::error::{Error, Result};
 pub use boi::{BoiMarking, mark_boi};
 pub use obj::write_obj;
 
+/// [`Mesh::bounds`] of some faces.
+pub fn bounds(positions: &[[f32; 3]], triangles: &[[u32; 3]]) -> ([f32; 3], [f32; 3]) {
+    let mut lo = [f32::INFINITY; 3];
+    let mut hi = [f32::NEG_INFINITY; 3];
+    for t in triangles {
+        for &v in t {
+            let p = positions[v as usize];
+            for k in 0..3 {
+                lo[k] = lo[k].min(p[k]);
+                hi[k] = hi[k].max(p[k]);
+            }
+        }
+    }
+    (lo, hi)
+}
+
 /// [`Mesh::signed_volume`] of some faces.
 pub fn signed_volume(positions: &[[f32; 3]], triangles: &[[u32; 3]]) -> f64 {
     let det: f64 = triangles
@@ -226,18 +242,7 @@ impl Mesh {
 
     /// Axis-aligned bounds (min, max) of the vertices used by faces.
     pub fn bounds(&self) -> ([f32; 3], [f32; 3]) {
-        let mut lo = [f32::INFINITY; 3];
-        let mut hi = [f32::NEG_INFINITY; 3];
-        for t in &self.triangles {
-            for &v in t {
-                let p = self.positions[v as usize];
-                for k in 0..3 {
-                    lo[k] = lo[k].min(p[k]);
-                    hi[k] = hi[k].max(p[k]);
-                }
-            }
-        }
-        (lo, hi)
+        bounds(&self.positions, &self.triangles)
     }
 
     /// A copy without the vertices no face uses (renumbered): what a renderer needs. A
