@@ -14,6 +14,11 @@
 // hands the rasteriser w = 1 positions on the 1/256 grid in a power-of-two viewport: the
 // fixed-function viewport transform is then exact, whatever integer offset places the tile in
 // the atlas. Otherwise positions stay homogeneous and the GPU clips at the near plane.
+//
+// A camera with lens distortion has each vertex distorted before it is snapped (as the CPU
+// twin does). A draw crossing the near plane is drawn without distortion: the clipping is the
+// GPU's there, and the CPU's twin, which clips first, distorts the clipped polygon. Such poses
+// put the arch within 1 mm of the camera.
 
 const SUBPIXELS: f32 = 256.0;
 
@@ -34,6 +39,13 @@ struct Draw {
     layer: u32,
     arch_bit: u32,
     _pad: vec2<u32>,
+    // The camera's lens, OpenCV's (k1, k2, p1, p2) and k3, the r² beyond which points are not
+    // projected (the model folds back), and whether there is one (src/energy/lens.rs).
+    lens: vec4<f32>,
+    lens_k3: f32,
+    lens_limit_r2: f32,
+    distorted: u32,
+    _pad2: u32,
 }
 
 @group(0) @binding(0) var<storage, read> draws: array<Draw>;
@@ -47,6 +59,22 @@ struct VsOut {
     @location(1) @interpolate(flat) draw: u32,
 }
 
+// Distorted normalised coordinates, in the CPU's order of operations. Beyond the lens's limit
+// the point is sent far outside the image (the CPU drops such triangles; they cannot reach the
+// image either way while the limit lies outside it).
+fn distort(d: Draw, n: vec2<f32>) -> vec2<f32> {
+    let r2 = n.x * n.x + n.y * n.y;
+    if r2 > d.lens_limit_r2 {
+        return n * (1.0e3 / sqrt(r2));
+    }
+    let radial = 1.0 + r2 * (d.lens.x + r2 * (d.lens.y + r2 * d.lens_k3));
+    let xy = n.x * n.y;
+    return vec2<f32>(
+        n.x * radial + 2.0 * d.lens.z * xy + d.lens.w * (r2 + 2.0 * n.x * n.x),
+        n.y * radial + d.lens.z * (r2 + 2.0 * n.y * n.y) + 2.0 * d.lens.w * xy,
+    );
+}
+
 @vertex
 fn vs_model(@location(0) position: vec3<f32>, @builtin(instance_index) draw: u32) -> VsOut {
     let d = draws[draw];
@@ -55,7 +83,11 @@ fn vs_model(@location(0) position: vec3<f32>, @builtin(instance_index) draw: u32
     let depth_scale = d.far / (d.far - d.near);
     var out: VsOut;
     if d.projected != 0u {
-        let fb = floor((d.focal * p.xy / p.z + d.centre) * SUBPIXELS + 0.5) / SUBPIXELS;
+        var fb_exact = d.focal * p.xy / p.z + d.centre;
+        if d.distorted != 0u {
+            fb_exact = d.focal * distort(d, p.xy / p.z) + d.centre;
+        }
+        let fb = floor(fb_exact * SUBPIXELS + 0.5) / SUBPIXELS;
         let ndc = vec2<f32>(fb.x / d.half_viewport.x - 1.0, 1.0 - fb.y / d.half_viewport.y);
         out.position = vec4<f32>(ndc, depth_scale * (1.0 - d.near / p.z), 1.0);
     } else {

@@ -6,7 +6,9 @@ use std::path::Path;
 
 use jawtrack::capture::masks::decode_mask;
 use jawtrack::capture::{Arch, ArchInit, Capture, MaskMode};
+use jawtrack::energy::raster::render_labels;
 use jawtrack::energy::{CpuEnergy, EnergyEngine, Scene};
+use jawtrack::geometry::{Camera, Pose};
 use nalgebra::Vector3;
 
 fn fixture() -> Capture {
@@ -34,45 +36,61 @@ fn reads_what_another_program_wrote() {
 }
 
 #[test]
-fn masks_of_a_distorted_camera_are_undistorted_once_at_load() {
+fn masks_are_used_as_seen_and_models_are_drawn_through_the_lens() {
     let c = fixture();
     let m = c.load_masks(0).unwrap();
-    let raw_left = decode_mask(&c.mask_path(0, 0), c.mask_mode).unwrap();
-    let raw_right = decode_mask(&c.mask_path(1, 0), c.mask_mode).unwrap();
-    assert!(
-        m.masks[1].as_ref().unwrap() == &raw_right,
-        "no distortion: unchanged"
-    );
-    let left = m.masks[0].as_ref().unwrap();
-    let changed = left
-        .data
-        .iter()
-        .zip(&raw_left.data)
-        .filter(|(a, b)| a != b)
-        .count();
-    assert!(
-        changed > 100,
-        "distortion removed: {changed} pixels changed"
-    );
-    // Barrel distortion (k1 < 0) pulls the image in; undistorting spreads it out again: each
-    // label covers more pixels, and labels stay labels.
-    for bit in [1u8, 2] {
-        let (a, b) = (raw_left.count(bit) as f64, left.count(bit) as f64);
-        assert!(b > a * 1.01 && b < a * 1.3, "label {bit}: {a} -> {b}");
+    for k in 0..2 {
+        let raw = decode_mask(&c.mask_path(k, 0), c.mask_mode).unwrap();
+        assert!(
+            m.masks[k].as_ref() == Some(&raw),
+            "camera {k}: mask as written"
+        );
     }
-    // The undistorted corner of the upper-arch rectangle lies where the camera model says.
-    let cam = c.cameras[0].calibrated.scaled_to(160, 120);
-    let corner = cam.pixel_to_normalised(nalgebra::Vector2::new(12.0, 30.0));
-    let (u, v) = (corner.x * cam.fx + cam.cx, corner.y * cam.fy + cam.cy);
+    let cam = c.cameras[0].mask_camera().unwrap();
+    assert!(cam.has_distortion(), "the mask camera keeps the lens");
+    // The upper box placed near the left camera's top-left corner, where the lens moves its
+    // corners by up to 9 pixels: its outline lies where the lens model projects its vertices.
+    let pose = Pose::from_translation(Vector3::new(-70.0, 56.0, 0.0));
+    let labels = render_labels(&cam, &[(&c.upper, &pose, 1, 1)]);
+    let (w, h) = (cam.width as usize, cam.height as usize);
+    let lit: Vec<(f64, f64)> = (0..w * h)
+        .filter(|&i| labels[i] == 1)
+        .map(|i| ((i % w) as f64, (i / w) as f64))
+        .collect();
+    let bounds = |pts: &mut dyn Iterator<Item = (f64, f64)>| {
+        pts.fold(
+            [
+                f64::INFINITY,
+                f64::NEG_INFINITY,
+                f64::INFINITY,
+                f64::NEG_INFINITY,
+            ],
+            |b, (u, v)| [b[0].min(u), b[1].max(u), b[2].min(v), b[3].max(v)],
+        )
+    };
+    let drawn = bounds(&mut lit.iter().copied());
+    let vertices = |cam: &Camera| {
+        bounds(&mut c.upper.positions.iter().map(|p| {
+            let x = pose.transform_point(&Vector3::new(p[0] as f64, p[1] as f64, p[2] as f64));
+            let px = cam.project(&x).unwrap();
+            (px.x, px.y)
+        }))
+    };
+    let through_lens = vertices(&cam);
+    let pinhole = vertices(&Camera {
+        distortion: [0.0; 5],
+        ..cam.clone()
+    });
+    for k in 0..4 {
+        assert!(
+            (drawn[k] - through_lens[k]).abs() <= 1.0,
+            "side {k}: drawn {drawn:?}, lens {through_lens:?}"
+        );
+    }
     assert!(
-        u < 11.0 && v < 29.0,
-        "barrel undistortion moves the corner outwards: ({u}, {v})"
+        (0..4).any(|k| (pinhole[k] - through_lens[k]).abs() > 4.0),
+        "the lens matters here: pinhole {pinhole:?}, lens {through_lens:?}"
     );
-    let near =
-        |du: f64, dv: f64| left.data[((v + dv).round() as usize) * 160 + (u + du).round() as usize];
-    assert_eq!(near(1.5, 1.5), 1, "inside the corner");
-    assert_eq!(near(-1.5, -1.5), 0, "outside the corner");
-    assert!(left.data.iter().all(|&v| v <= 2));
 }
 
 #[test]

@@ -109,8 +109,8 @@ fn random_candidates(truth: &ArchPoses, arch: Arch, seed: u64) -> Vec<ArchPoses>
         .collect()
 }
 
-fn compare_on_synthetic(masks: MaskKind) {
-    let c = Capture::open(template(Preset::Realistic, masks)).unwrap();
+fn compare_on_synthetic(capture: &std::path::Path, what: &str) {
+    let c = Capture::open(capture).unwrap();
     let scene = Scene::from_capture(&c);
     let Some(mut g) = gpu(scene.clone(), Region::Footprint) else {
         return;
@@ -217,17 +217,26 @@ fn compare_on_synthetic(masks: MaskKind) {
         }
     }
     eprintln!(
-        "{masks:?}: largest GPU-CPU bin difference {:.4}% of the mask's pixels; footprint vs full frame {worst_region} px; {differing} of {compared} bins differ",
+        "{what}: largest GPU-CPU bin difference {:.4}% of the mask's pixels; footprint vs full frame {worst_region} px; {differing} of {compared} bins differ",
         worst * 100.0
     );
 }
 
 #[test]
 fn gpu_matches_cpu_on_synthetic_frames_per_arch() {
-    compare_on_synthetic(MaskKind::PerArch);
+    compare_on_synthetic(template(Preset::Realistic, MaskKind::PerArch), "per-arch");
 }
 
 #[test]
 fn gpu_matches_cpu_on_synthetic_frames_combined() {
-    compare_on_synthetic(MaskKind::Combined);
+    compare_on_synthetic(template(Preset::Realistic, MaskKind::Combined), "combined");
+}
+
+/// Both draw the models through the lens, distorting each vertex in f32 in the same order.
+#[test]
+fn gpu_matches_cpu_through_a_lens() {
+    let c = common::lens_template(Preset::Realistic);
+    let cam = Capture::open(c).unwrap().cameras[0].mask_camera().unwrap();
+    assert!(cam.has_distortion());
+    compare_on_synthetic(c, "through a lens");
 }

@@ -242,6 +242,33 @@ fn meshes_in_another_model_frame_track_as_well() {
 }
 
 #[test]
+fn a_capture_filmed_through_a_lens_tracks_as_well() {
+    // The six-frame clean capture of the test above, with a barrel lens written to the camera
+    // files and the masks drawn through it. Measured: worst jaw 0.09 mm through the lens,
+    // 0.17 mm without it; with the masks undistorted at load instead (the code before), the
+    // 12-frame clean capture of seed 4 tracked at 0.078 mm median for the lower arch against
+    // 0.020 without the lens.
+    let t = tempfile::tempdir().unwrap();
+    let cap = common::lens_template(Preset::Clean);
+    let out = t.path().join("tracks.json");
+    track(cap, &out, &[]);
+    let s = score(cap, &out);
+    assert_eq!(s["frames_ok"], 6, "{s}");
+    for (part, median, worst) in [
+        ("upper", 0.06, 0.3),
+        ("lower", 0.06, 0.3),
+        ("jaw", 0.1, 0.4),
+    ] {
+        let m = s[part]["mean_vertex_mm"]["median"].as_f64().unwrap();
+        let w = s[part]["mean_vertex_mm"]["max"].as_f64().unwrap();
+        assert!(
+            m < median && w < worst,
+            "{part}: median {m} mm, worst {w} mm"
+        );
+    }
+}
+
+#[test]
 fn settings_come_from_a_file_or_inline_and_a_misspelt_field_is_an_error() {
     let t = tempfile::tempdir().unwrap();
     let cap = capture48();

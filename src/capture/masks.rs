@@ -4,8 +4,6 @@
 use std::path::Path;
 
 use crate::error::{Error, Result};
-use crate::geometry::Camera;
-use nalgebra::Vector2;
 
 pub const UPPER_BIT: u8 = 1;
 pub const LOWER_BIT: u8 = 2;
@@ -101,47 +99,4 @@ pub fn decode_mask(path: &Path, mode: MaskMode) -> Result<LabelMask> {
         height,
         data: grey.into_iter().map(|v| mode.label_of(v)).collect(),
     })
-}
-
-/// For each pixel of the undistorted mask, the index of the distorted source pixel it takes
-/// its label from (nearest neighbour, so labels stay exact), or `u32::MAX` for outside.
-/// `camera` is the calibrated camera scaled to the mask size, distortion included.
-pub fn undistortion_map(camera: &Camera) -> Vec<u32> {
-    let (w, h) = (camera.width, camera.height);
-    let mut map = Vec::with_capacity((w * h) as usize);
-    for v in 0..h {
-        for u in 0..w {
-            let n = Vector2::new(
-                (u as f64 - camera.cx) / camera.fx,
-                (v as f64 - camera.cy) / camera.fy,
-            );
-            let src = camera.normalised_to_pixel(n);
-            let (su, sv) = (src.x.round(), src.y.round());
-            map.push(
-                if su >= 0.0 && sv >= 0.0 && su < w as f64 && sv < h as f64 {
-                    sv as u32 * w + su as u32
-                } else {
-                    u32::MAX
-                },
-            );
-        }
-    }
-    map
-}
-
-pub fn apply_map(mask: &LabelMask, map: &[u32]) -> LabelMask {
-    LabelMask {
-        width: mask.width,
-        height: mask.height,
-        data: map
-            .iter()
-            .map(|&i| {
-                if i == u32::MAX {
-                    0
-                } else {
-                    mask.data[i as usize]
-                }
-            })
-            .collect(),
-    }
 }

@@ -8,7 +8,6 @@ mod write;
 
 use std::collections::BTreeSet;
 use std::path::{Path, PathBuf};
-use std::sync::OnceLock;
 
 use nalgebra::Vector2;
 
@@ -86,15 +85,15 @@ pub struct CaptureCamera {
     pub mask_size: Option<(u32, u32)>,
     /// Frames with a mask file.
     pub frames_present: BTreeSet<u32>,
-    undistort: OnceLock<Vec<u32>>,
 }
 
 impl CaptureCamera {
-    /// The pinhole camera the masks are seen through after undistortion: calibrated
-    /// intrinsics scaled to the mask size, no distortion.
+    /// The camera the masks are seen through: calibrated intrinsics scaled to the mask size,
+    /// distortion as calibrated (masks are used as they are; the energy draws the models
+    /// through the lens).
     pub fn mask_camera(&self) -> Option<Camera> {
         let (w, h) = self.mask_size?;
-        Some(self.calibrated.scaled_to(w, h).undistorted())
+        Some(self.calibrated.scaled_to(w, h))
     }
 }
 
@@ -264,7 +263,6 @@ impl Capture {
                 calibrated,
                 mask_size,
                 frames_present,
-                undistort: OnceLock::new(),
             });
         }
         let first = cj.frames.first;
@@ -366,7 +364,7 @@ impl Capture {
             .join(format!("{frame:06}.png"))
     }
 
-    /// Decode the masks of one frame (undistorted when the camera has distortion).
+    /// Decode the masks of one frame, as they are (see [`CaptureCamera::mask_camera`]).
     pub fn load_masks(&self, frame: u32) -> Result<FrameMasks> {
         let mut masks = Vec::with_capacity(self.cameras.len());
         for (i, cam) in self.cameras.iter().enumerate() {
@@ -389,14 +387,7 @@ impl Capture {
                     ),
                 ));
             }
-            masks.push(Some(if cam.calibrated.has_distortion() {
-                let map = cam.undistort.get_or_init(|| {
-                    masks::undistortion_map(&cam.calibrated.scaled_to(expected.0, expected.1))
-                });
-                masks::apply_map(&mask, map)
-            } else {
-                mask
-            }));
+            masks.push(Some(mask));
         }
         Ok(FrameMasks { frame, masks })
     }

@@ -264,6 +264,8 @@ pub struct TrackArgs {
     /// scans, ../shared/data/scan-tag0).
     #[arg(long)]
     meshes: Option<PathBuf>,
+    #[command(flatten)]
+    lens: super::synth::LensArgs,
     /// Tracking settings (JSON, fields of TrackSettings), e.g. to turn the jaw prior off: a
     /// file, or the JSON itself when it starts with `{`.
     #[arg(long)]
@@ -366,6 +368,7 @@ pub fn track(a: TrackArgs) -> anyhow::Result<()> {
                 joint: a.joint,
                 frames_per_segment: a.frames_per_segment,
                 meshes: a.meshes.clone(),
+                distortion: a.lens.coefficients()?,
                 ..SynthOptions::default()
             };
             generate(&dir, &opts, &|| {}).context("synthesising")?;

@@ -37,9 +37,35 @@ pub struct Args {
     /// takes at least; 20 (0.83 s at the synthetic 24 fps) is an unhurried human pace.
     #[arg(long, default_value_t = jawtrack::synth::tmj::FRAMES_PER_SEGMENT)]
     pub frames_per_segment: u32,
+    #[command(flatten)]
+    pub lens: LensArgs,
     /// Print the report as JSON.
     #[arg(long)]
     pub json: bool,
+}
+
+/// The synthetic rig's lens (`synth`, `bench track`).
+#[derive(clap::Args, Clone, Debug)]
+pub struct LensArgs {
+    /// Lens distortion for every camera, OpenCV's k1,k2,p1,p2[,k3] (e.g. -0.25,0.08,0,0, a
+    /// moderate barrel): written to the camera files, and the masks are drawn through it, so
+    /// the tracker has to undistort them. Default: none (the rig of calib/ as it is).
+    #[arg(long, value_delimiter = ',', allow_hyphen_values = true)]
+    pub distortion: Option<Vec<f64>>,
+}
+
+impl LensArgs {
+    pub fn coefficients(&self) -> anyhow::Result<[f64; 5]> {
+        let mut k = [0.0; 5];
+        if let Some(d) = &self.distortion {
+            anyhow::ensure!(
+                (4..=5).contains(&d.len()) && d.iter().all(|x| x.is_finite()),
+                "--distortion: expected 4 or 5 finite numbers (k1,k2,p1,p2[,k3]), found {d:?}"
+            );
+            k[..d.len()].copy_from_slice(d);
+        }
+        Ok(k)
+    }
 }
 
 pub fn run(a: Args) -> anyhow::Result<()> {
@@ -53,6 +79,7 @@ pub fn run(a: Args) -> anyhow::Result<()> {
         no_masks: a.no_masks,
         joint: a.joint,
         frames_per_segment: a.frames_per_segment,
+        distortion: a.lens.coefficients()?,
     };
     let report = generate(&a.out, &opts)?;
     if a.json {

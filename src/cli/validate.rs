@@ -57,7 +57,7 @@ pub fn print_summary(c: &Capture) {
             in_range,
             c.frame_count,
             if k.has_distortion() {
-                "yes (masks undistorted at load)"
+                "yes (models drawn through the lens)"
             } else {
                 "no"
             }

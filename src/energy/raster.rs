@@ -9,6 +9,7 @@
 //! coordinates are those plus 0.5.
 
 use super::backfaces::AwaySign;
+use super::lens::{Lens, bounds_through};
 use crate::capture::Mesh;
 use crate::geometry::{Camera, Pose};
 
@@ -142,8 +143,9 @@ impl Affine {
 }
 
 /// A conservative pixel rectangle a set of camera-space points can touch (e.g. a bounding
-/// box's corners), clamped to the image; the whole image if a point is behind the near plane.
-pub fn footprint(cam: &Camera, points: &[[f32; 3]]) -> Rect {
+/// box's corners), clamped to the image; the whole image if a point is behind the near plane
+/// (or beyond the lens's limit). `lens`: [`Lens::of`] the camera.
+pub fn footprint(cam: &Camera, lens: Option<&Lens>, points: &[[f32; 3]]) -> Rect {
     let (mut lo, mut hi) = ([f64::INFINITY; 2], [f64::NEG_INFINITY; 2]);
     for p in points {
         let z = p[2] as f64;
@@ -163,11 +165,21 @@ pub fn footprint(cam: &Camera, points: &[[f32; 3]]) -> Rect {
             height: 0,
         };
     }
+    // Through the lens: the pinhole rectangle's image, one more pixel for the f32 projection
+    // and the walk's steps.
+    let mut slack = 1.0;
+    if let Some(lens) = lens {
+        match bounds_through(cam, lens, lo, hi) {
+            Some(b) => (lo, hi) = b,
+            None => return Rect::full(cam.width, cam.height),
+        }
+        slack = 2.0;
+    }
     // Pixel centres strictly inside the float bounds, plus one pixel for snapping.
-    let x0 = (lo[0].floor() - 1.0).clamp(0.0, cam.width as f64) as u32;
-    let y0 = (lo[1].floor() - 1.0).clamp(0.0, cam.height as f64) as u32;
-    let x1 = (hi[0].ceil() + 2.0).clamp(0.0, cam.width as f64) as u32;
-    let y1 = (hi[1].ceil() + 2.0).clamp(0.0, cam.height as f64) as u32;
+    let x0 = (lo[0].floor() - slack).clamp(0.0, cam.width as f64) as u32;
+    let y0 = (lo[1].floor() - slack).clamp(0.0, cam.height as f64) as u32;
+    let x1 = (hi[0].ceil() + 1.0 + slack).clamp(0.0, cam.width as f64) as u32;
+    let y1 = (hi[1].ceil() + 1.0 + slack).clamp(0.0, cam.height as f64) as u32;
     Rect {
         x0,
         y0,
@@ -188,6 +200,8 @@ pub struct Placed {
     crosses_near: bool,
     /// Faces of this sign are left out (see `backfaces`).
     away: Option<AwaySign>,
+    /// The camera's lens, when it has one.
+    lens: Option<Lens>,
 }
 
 /// A vertex's snapped framebuffer position (1/256 pixel units; inside the guard band these
@@ -204,6 +218,7 @@ impl Placed {
         self.points
             .extend(mesh.positions.iter().map(|p| m.apply(p)));
         let proj = Projector::new(cam);
+        self.lens = proj.lens;
         self.projected.clear();
         self.crosses_near = false;
         self.away = None;
@@ -232,7 +247,8 @@ impl Placed {
     /// A conservative pixel rectangle that a model-space box (its corners), placed as the
     /// mesh is, can touch (see [`footprint`]).
     pub fn footprint_of_box(&self, cam: &Camera, corners: &[[f32; 3]; 8]) -> Rect {
-        footprint(cam, &corners.map(|p| self.camera_from_model.apply(&p)))
+        let corners = corners.map(|p| self.camera_from_model.apply(&p));
+        footprint(cam, self.lens.as_ref(), &corners)
     }
 
     /// [`Placed::footprint`] of some of the vertices (`vertices`: indices into the mesh).
@@ -323,7 +339,6 @@ pub fn rasterise_body_where(
     if rect.area() == 0 {
         return;
     }
-    let proj = Projector::new(cam);
     for (tri, &is_boi) in mesh.triangles[faces.clone()].iter().zip(&mesh.boi[faces]) {
         let class = if is_boi { class_boi } else { class_body };
         let s = tri.map(|i| placed.projected[i as usize]);
@@ -345,6 +360,7 @@ pub fn rasterise_body_where(
             continue; // outside the guard band
         }
         let v = tri.map(|i| placed.points[i as usize]);
+        let proj = Projector::new(cam);
         let behind = v.iter().filter(|p| (p[2] as f64) < NEAR_MM).count();
         if behind == 3 {
             continue;
@@ -381,10 +397,12 @@ fn clip_near(v: &[[f32; 3]; 3]) -> Vec<[f32; 3]> {
 }
 
 /// Projection to snapped framebuffer positions, in f32 and in the same order of operations
-/// as the GPU twin's vertex shader (shaders/raster.wgsl), so both snap alike.
+/// as the GPU twin's vertex shader (shaders/raster.wgsl), so both snap alike; through the
+/// camera's lens when it has one (see [`lens`](super::lens)).
 struct Projector {
     focal: [f32; 2],
     centre: [f32; 2],
+    lens: Option<Lens>,
 }
 
 impl Projector {
@@ -392,13 +410,21 @@ impl Projector {
         Projector {
             focal: [cam.fx as f32, cam.fy as f32],
             centre: [(cam.cx + 0.5) as f32, (cam.cy + 0.5) as f32],
+            lens: Lens::of(cam),
         }
     }
 
-    /// Snapped framebuffer position (1/256 pixel units) and 1/z; `None` outside the guard band.
+    /// Snapped framebuffer position (1/256 pixel units) and 1/z; `None` outside the guard band
+    /// (or beyond the lens's limit).
     fn project(&self, p: &[f32; 3]) -> Option<Snapped> {
         let z = p[2];
-        let fb = [0, 1].map(|k| self.focal[k] * p[k] / z + self.centre[k]);
+        let fb = match &self.lens {
+            None => [0, 1].map(|k| self.focal[k] * p[k] / z + self.centre[k]),
+            Some(lens) => {
+                let d = lens.apply(p[0] / z, p[1] / z)?;
+                [0, 1].map(|k| self.focal[k] * d[k] + self.centre[k])
+            }
+        };
         if fb.iter().any(|c| c.abs() > GUARD_PIXELS as f32) {
             return None;
         }
@@ -680,10 +706,34 @@ mod tests {
         let cam = camera(100, 80, 50.0, 40.0);
         let m = square(-7.3, -3.1, 9.9, 12.2, 90.0);
         let pose = Pose::from_euler_tuple(&[0.2, -0.3, 0.4, 1.0, 2.0, 5.0]);
+        // Also through a strong barrel lens and a pincushion one.
+        for distortion in [[-0.4, 0.1, 0.002, 0.001, 0.0], [0.3, 0.0, 0.0, 0.0, 0.0]] {
+            let cam = Camera {
+                distortion,
+                ..cam.clone()
+            };
+            let full = render(&cam, &m, &pose);
+            let mut placed = Placed::default();
+            placed.place(&cam, &m, &pose);
+            let lens = Lens::of(&cam);
+            for r in [
+                placed.footprint(&cam),
+                footprint(&cam, lens.as_ref(), &placed.points),
+            ] {
+                let mut t = Target::default();
+                t.reset(r);
+                rasterise(&cam, &m, &placed, CLASS_BODY, CLASS_BOI, &mut t);
+                assert_eq!(count(&t, CLASS_BODY), count(&full, CLASS_BODY));
+                assert!(count(&t, CLASS_BODY) > 100);
+            }
+        }
         let full = render(&cam, &m, &pose);
         let mut placed = Placed::default();
         placed.place(&cam, &m, &pose);
-        for r in [placed.footprint(&cam), footprint(&cam, &placed.points)] {
+        for r in [
+            placed.footprint(&cam),
+            footprint(&cam, None, &placed.points),
+        ] {
             let mut t = Target::default();
             t.reset(r);
             rasterise(&cam, &m, &placed, CLASS_BODY, CLASS_BOI, &mut t);

@@ -40,12 +40,52 @@ impl Camera {
         }
     }
 
-    /// The camera with its distortion removed (what an undistorted mask is seen through).
-    pub fn undistorted(&self) -> Camera {
-        Camera {
-            distortion: [0.0; 5],
-            ..self.clone()
+    /// The largest r² (of undistorted normalised coordinates) up to which the radial
+    /// distortion's image radius r·(1 + k1 r² + k2 r⁴ + k3 r⁶) keeps growing with r. Beyond it
+    /// the lens model folds back and would map points far outside the view into the image,
+    /// so projections stop there. Infinite without radial distortion or when the model never
+    /// folds (checked out to r = 20, 87° off the axis).
+    pub fn lens_limit_r2(&self) -> f64 {
+        let [k1, k2, _, _, k3] = self.distortion;
+        // d(image radius)/dr as a cubic in t = r²; it is 1 at t = 0.
+        let (a, b, c) = (3.0 * k1, 5.0 * k2, 7.0 * k3);
+        let slope = |t: f64| 1.0 + t * (a + t * (b + t * c));
+        const T_MAX: f64 = 400.0;
+        // Between the cubic's turning points it is monotonic: find the first stretch where
+        // it reaches zero, then bisect there.
+        let mut points = [0.0, T_MAX, T_MAX, T_MAX];
+        let (qa, qb, qc) = (3.0 * c, 2.0 * b, a);
+        let turning: [f64; 2] = if qa != 0.0 {
+            let disc = qb * qb - 4.0 * qa * qc;
+            let sq = disc.max(0.0).sqrt();
+            [(-qb - sq) / (2.0 * qa), (-qb + sq) / (2.0 * qa)]
+        } else if qb != 0.0 {
+            [-qc / qb; 2]
+        } else {
+            [T_MAX; 2]
+        };
+        for (slot, t) in points[2..].iter_mut().zip(turning) {
+            if t > 0.0 && t < T_MAX {
+                *slot = t;
+            }
         }
+        points.sort_by(f64::total_cmp);
+        for w in points.windows(2) {
+            let (mut lo, mut hi) = (w[0], w[1]);
+            if slope(hi) > 0.0 {
+                continue;
+            }
+            for _ in 0..100 {
+                let mid = 0.5 * (lo + hi);
+                if slope(mid) > 0.0 {
+                    lo = mid;
+                } else {
+                    hi = mid;
+                }
+            }
+            return lo;
+        }
+        f64::INFINITY
     }
 
     /// World point to camera coordinates.
@@ -134,7 +174,10 @@ mod tests {
 
     #[test]
     fn scaling_keeps_pixel_centres_consistent() {
-        let cam = test_camera().undistorted();
+        let cam = Camera {
+            distortion: [0.0; 5],
+            ..test_camera()
+        };
         let half = cam.scaled_to(960, 540);
         let p = Vector3::new(3.0, -2.0, 5.0);
         let full = cam.project(&p).unwrap();
@@ -142,6 +185,27 @@ mod tests {
         // Centre of full-res pixel u maps to (u + 0.5)/2 − 0.5 in the half-res image.
         assert!((h.x - ((full.x + 0.5) * 0.5 - 0.5)).abs() < 1e-9);
         assert!((h.y - ((full.y + 0.5) * 0.5 - 0.5)).abs() < 1e-9);
+    }
+
+    #[test]
+    fn the_lens_limit_is_where_the_radial_model_turns_back() {
+        let with = |distortion| Camera {
+            distortion,
+            ..test_camera()
+        };
+        // r (1 - 0.5 r²) peaks at r² = 2/3.
+        let r2 = with([-0.5, 0.0, 0.0, 0.0, 0.0]).lens_limit_r2();
+        assert!(r2 < 2.0 / 3.0 && r2 > 0.66, "{r2}");
+        // Pincushion, and no distortion, never turn back.
+        assert_eq!(
+            with([0.1, 0.0, 0.0, 0.0, 0.0]).lens_limit_r2(),
+            f64::INFINITY
+        );
+        assert_eq!(with([0.0; 5]).lens_limit_r2(), f64::INFINITY);
+        // The test camera's moderate barrel turns back far outside its image.
+        let cam = test_camera();
+        let corner = Vector2::new(cam.cx / cam.fx, cam.cy / cam.fy).norm_squared();
+        assert!(cam.lens_limit_r2() > 4.0 * corner);
     }
 
     #[test]

@@ -40,6 +40,11 @@ pub const FRAMES_PER_SECOND: f64 = 24.0;
 pub const UPPER_LABEL: u8 = 85;
 pub const LOWER_LABEL: u8 = 170;
 const COMBINED_TEETH: u8 = 255;
+/// A moderate barrel lens (OpenCV's k1, k2, p1, p2, k3), for tests and benchmarks of captures
+/// with distortion. At the synthetic rig's full resolution it moves a point the pinhole camera
+/// puts in an image corner in by about 200 pixels, and one 200 pixels from the centre, where
+/// the arches are, by about 2.5.
+pub const BARREL_LENS: [f64; 5] = [-0.25, 0.08, 0.001, -0.0005, 0.0];
 
 #[derive(Debug, Clone, Copy, PartialEq, Eq, clap::ValueEnum)]
 pub enum Preset {
@@ -88,6 +93,9 @@ pub struct SynthOptions {
     /// exercise at this pace plays its beginning; a longer one spreads the whole exercise
     /// over it.
     pub frames_per_segment: u32,
+    /// The cameras' lens distortion, OpenCV's (k1, k2, p1, p2, k3): written to the camera
+    /// files, and the masks are drawn through it. Zeros: the rig of calib/ as it is.
+    pub distortion: [f64; 5],
 }
 
 impl Default for SynthOptions {
@@ -102,6 +110,7 @@ impl Default for SynthOptions {
             no_masks: false,
             joint: Joint::Average,
             frames_per_segment: tmj::FRAMES_PER_SEGMENT,
+            distortion: [0.0; 5],
         }
     }
 }
@@ -211,11 +220,25 @@ impl Session {
         let (llo, lhi) = lower.bounds();
         let lower_incisor =
             Vector3::new((llo[0] + lhi[0]) as f64 * 0.5, lhi[1] as f64, lhi[2] as f64);
-        let cameras = rig_cameras();
-        let mask_cameras = cameras
+        let mut cameras = rig_cameras();
+        for c in &mut cameras {
+            c.distortion = opts.distortion;
+        }
+        let mask_cameras: Vec<Camera> = cameras
             .iter()
             .map(|c| c.scaled_to(c.width / 2, c.height / 2))
             .collect();
+        if let Some(c) = mask_cameras.iter().find(|c| !lens_covers_the_image(c)) {
+            return Err(Error::invalid(
+                Path::new("--distortion"),
+                "distortion",
+                format!(
+                    "{:?} folds back on itself inside {}'s image (the radial model stops growing \
+                     before the corners): choose a milder lens",
+                    opts.distortion, c.name
+                ),
+            ));
+        }
         let lips = [
             masks::LipLine::new(&upper, Arch::Upper),
             masks::LipLine::new(&lower, Arch::Lower),
@@ -297,6 +320,24 @@ impl Session {
     }
 }
 
+/// Whether every pixel of `cam`'s image lies within its lens model's reach (the image radius
+/// of [`Camera::lens_limit_r2`] is beyond the corners).
+fn lens_covers_the_image(cam: &Camera) -> bool {
+    let limit = cam.lens_limit_r2();
+    if limit.is_infinite() {
+        return true;
+    }
+    let [k1, k2, _, _, k3] = cam.distortion;
+    let reach = limit.sqrt() * (1.0 + limit * (k1 + limit * (k2 + limit * k3)));
+    let (w, h) = (cam.width as f64 - 1.0, cam.height as f64 - 1.0);
+    [(0.0, 0.0), (w, 0.0), (0.0, h), (w, h)]
+        .iter()
+        .all(|&(u, v)| {
+            let d = nalgebra::Vector2::new((u - cam.cx) / cam.fx, (v - cam.cy) / cam.fy);
+            d.norm() < reach
+        })
+}
+
 /// One camera's mask of one frame, and its statistics.
 struct RenderedMask {
     png: Option<Vec<u8>>,
@@ -313,6 +354,7 @@ fn render_mask(
     rng: &mut ChaCha8Rng,
 ) -> RenderedMask {
     let (w, h) = (cam.width as usize, cam.height as usize);
+    // Through the lens when the camera has one, as the energy draws (`energy::lens`).
     let mut labels = render_labels(
         cam,
         &[
@@ -463,10 +505,15 @@ fn write_capture(
     };
     write_json_atomic(&dir.join("capture.json"), &capture)?;
     for (name, json) in RIG {
-        write_atomic(
-            &dir.join("cameras").join(format!("{name}.json")),
-            json.as_bytes(),
-        )?;
+        let path = dir.join("cameras").join(format!("{name}.json"));
+        if opts.distortion == [0.0; 5] {
+            write_atomic(&path, json.as_bytes())?;
+        } else {
+            let mut cj: CameraJson =
+                serde_json::from_str(json).expect("calib/ camera files are valid JSON");
+            cj.distortion = Some(opts.distortion.to_vec());
+            write_json_atomic(&path, &cj)?;
+        }
     }
     write_obj(&s.upper, &dir.join("meshes/upper.obj"))?;
     write_obj(&s.lower, &dir.join("meshes/lower.obj"))?;

@@ -34,6 +34,29 @@ pub fn template(preset: Preset, masks: MaskKind) -> &'static Path {
     .leak()
 }
 
+/// The realistic per-arch template's subject filmed through a barrel lens
+/// ([`BARREL_LENS`](jawtrack::synth::BARREL_LENS)), written once per test binary.
+pub fn lens_template(preset: Preset) -> &'static Path {
+    static CELLS: [OnceLock<tempfile::TempDir>; 3] = [const { OnceLock::new() }; 3];
+    let cell = &CELLS[preset as usize];
+    cell.get_or_init(|| {
+        let dir = tempfile::tempdir().unwrap();
+        let opts = SynthOptions {
+            frames: 6,
+            frames_per_segment: 1,
+            seed: 3,
+            preset,
+            distortion: jawtrack::synth::BARREL_LENS,
+            ..SynthOptions::default()
+        };
+        generate(&dir.path().join("c"), &opts, &|| {}).unwrap();
+        dir
+    })
+    .path()
+    .join("c")
+    .leak()
+}
+
 /// A fresh, writable copy of the clean per-arch template.
 pub fn fresh_capture() -> (tempfile::TempDir, PathBuf) {
     let dir = tempfile::tempdir().unwrap();

@@ -18,6 +18,7 @@ use wgpu::util::DeviceExt;
 
 pub use adapter::{ADAPTER_ENV, GpuContext};
 
+use super::lens::Lens;
 use super::raster::{self, CLASS_BODY, CLASS_BOI, NEAR_MM, Rect};
 use super::{Counts, Energy, EnergyEngine, Region, Scene, counts_with_outside, mask_totals};
 use crate::capture::{Arch, ArchPoses, FrameMasks, Mesh};
@@ -81,6 +82,12 @@ struct DrawRecord {
     layer: u32,
     arch_bit: u32,
     _pad: [u32; 2],
+    /// The camera's lens (k1, k2, p1, p2), k3, its limit (r²) and whether it has one.
+    lens: [f32; 4],
+    lens_k3: f32,
+    lens_limit_r2: f32,
+    distorted: u32,
+    _pad2: u32,
 }
 
 #[repr(C)]
@@ -681,9 +688,11 @@ impl GpuEnergy {
                 })
                 .collect()
         };
-        let mut rect = raster::footprint(cam, &corners_in_camera(arch));
+        let lens = Lens::of(cam);
+        let mut rect = raster::footprint(cam, lens.as_ref(), &corners_in_camera(arch));
         if self.scene.other_arch_class() != raster::CLASS_NONE {
-            rect = rect.union(&raster::footprint(cam, &corners_in_camera(arch.other())));
+            let other = corners_in_camera(arch.other());
+            rect = rect.union(&raster::footprint(cam, lens.as_ref(), &other));
         }
         rect
     }
@@ -779,6 +788,7 @@ impl GpuEnergy {
                 * 1.5
                 + 10.0;
             let (vw, vh) = viewport_size(cam);
+            let lens = Lens::of(cam);
             let record = |a: Arch, mesh: &GpuMesh, class_id: u8| {
                 let camera_from_model = cam.camera_from_world.compose(poses.get(a));
                 let projected = mesh.corners.iter().all(|c| {
@@ -801,6 +811,11 @@ impl GpuEnergy {
                     layer: tile.camera as u32,
                     arch_bit: arch.mask_bit() as u32,
                     _pad: [0; 2],
+                    lens: lens.map_or([0.0; 4], |l| [l.k1, l.k2, l.p1, l.p2]),
+                    lens_k3: lens.map_or(0.0, |l| l.k3),
+                    lens_limit_r2: lens.map_or(0.0, |l| l.limit_r2),
+                    distorted: lens.is_some() as u32,
+                    _pad2: 0,
                 }
             };
             draws.push(record(arch.other(), other, other_class));
