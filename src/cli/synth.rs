@@ -48,8 +48,8 @@ pub struct Args {
 #[derive(clap::Args, Clone, Debug)]
 pub struct LensArgs {
     /// Lens distortion for every camera, OpenCV's k1,k2,p1,p2[,k3] (e.g. -0.25,0.08,0,0, a
-    /// moderate barrel): written to the camera files, and the masks are drawn through it, so
-    /// the tracker has to undistort them. Default: none (the rig of calib/ as it is).
+    /// moderate barrel): written to the camera files, and the masks are drawn through it.
+    /// Default: none (the rig of calib/ as it is).
     #[arg(long, value_delimiter = ',', allow_hyphen_values = true)]
     pub distortion: Option<Vec<f64>>,
 }

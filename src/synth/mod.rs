@@ -231,7 +231,7 @@ impl Session {
         if let Some(c) = mask_cameras.iter().find(|c| !lens_covers_the_image(c)) {
             return Err(Error::invalid(
                 Path::new("--distortion"),
-                "distortion",
+                "k1, k2, k3",
                 format!(
                     "{:?} folds back on itself inside {}'s image (the radial model stops growing \
                      before the corners): choose a milder lens",
