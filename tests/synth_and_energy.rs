@@ -91,6 +91,71 @@ fn synthesis_is_deterministic_per_seed() {
     assert!(err.contains("already exists"), "{err}");
 }
 
+#[test]
+fn another_rig_and_a_lens_are_written_as_given() {
+    let t = tempfile::tempdir().unwrap();
+    // A two-camera rig: calib/'s side cameras, one given a lens of its own.
+    let rig = t.path().join("rig");
+    std::fs::create_dir_all(&rig).unwrap();
+    let calib = std::path::Path::new(env!("CARGO_MANIFEST_DIR")).join("calib");
+    std::fs::copy(calib.join("cam1.json"), rig.join("left.json")).unwrap();
+    let mut right: serde_json::Value =
+        serde_json::from_str(&std::fs::read_to_string(calib.join("cam2.json")).unwrap()).unwrap();
+    right["distortion"] = serde_json::json!([-0.1, 0.0, 0.0, 0.0]);
+    std::fs::write(rig.join("right.json"), right.to_string()).unwrap();
+    let opts = |distortion| SynthOptions {
+        frames: 2,
+        rig: Some(rig.clone()),
+        distortion,
+        ..SynthOptions::default()
+    };
+    generate(&t.path().join("own"), &opts(None), &|| {}).unwrap();
+    let c = Capture::open(&t.path().join("own")).unwrap();
+    assert_eq!(c.camera_names(), ["left", "right"]);
+    assert_eq!(
+        c.cameras[1].calibrated.distortion,
+        [-0.1, 0.0, 0.0, 0.0, 0.0]
+    );
+    assert!(!c.cameras[0].calibrated.has_distortion());
+    assert_eq!(c.cameras[0].mask_size, Some((960, 540)));
+    // --distortion replaces every camera's lens.
+    generate(
+        &t.path().join("lens"),
+        &opts(Some(jawtrack::synth::BARREL_LENS)),
+        &|| {},
+    )
+    .unwrap();
+    let c = Capture::open(&t.path().join("lens")).unwrap();
+    for cam in &c.cameras {
+        assert_eq!(cam.calibrated.distortion, jawtrack::synth::BARREL_LENS);
+    }
+    // A lens that folds back inside the image, and a folder without cameras, are refused.
+    let err = generate(
+        &t.path().join("x"),
+        &opts(Some([-0.6, 0.0, 0.0, 0.0, 0.0])),
+        &|| {},
+    )
+    .unwrap_err()
+    .to_string();
+    assert!(
+        err.contains("left.json") && err.contains("folds back"),
+        "{err}"
+    );
+    let empty = t.path().join("empty");
+    std::fs::create_dir_all(&empty).unwrap();
+    let err = generate(
+        &t.path().join("y"),
+        &SynthOptions {
+            rig: Some(empty),
+            ..SynthOptions::default()
+        },
+        &|| {},
+    )
+    .unwrap_err()
+    .to_string();
+    assert!(err.contains("holds no camera files"), "{err}");
+}
+
 /// Each of the six pose parameters moved by ±0.5 mm or ±0.5°.
 fn single_dof_moves(truth: &ArchPoses, arch: Arch) -> Vec<ArchPoses> {
     (0..12)

@@ -265,7 +265,7 @@ pub struct TrackArgs {
     #[arg(long)]
     meshes: Option<PathBuf>,
     #[command(flatten)]
-    lens: super::synth::LensArgs,
+    rig: super::synth::RigArgs,
     /// Tracking settings (JSON, fields of TrackSettings), e.g. to turn the jaw prior off: a
     /// file, or the JSON itself when it starts with `{`.
     #[arg(long)]
@@ -368,7 +368,8 @@ pub fn track(a: TrackArgs) -> anyhow::Result<()> {
                 joint: a.joint,
                 frames_per_segment: a.frames_per_segment,
                 meshes: a.meshes.clone(),
-                distortion: a.lens.coefficients()?,
+                rig: a.rig.rig.clone(),
+                distortion: a.rig.distortion()?,
                 ..SynthOptions::default()
             };
             generate(&dir, &opts, &|| {}).context("synthesising")?;

@@ -44,7 +44,8 @@ pub fn run(a: Args) -> anyhow::Result<()> {
         // The exercise's core (open, left, right, protrude) squeezed into 48 frames, 6 a
         // movement, faster than people move: the rig learnt at the end sees the whole range.
         frames_per_segment: 6,
-        distortion: [0.0; 5],
+        rig: None,
+        distortion: None,
     };
     println!(
         "== 1. synthesise a {:?} capture: three cameras, half-resolution masks",

@@ -38,33 +38,39 @@ pub struct Args {
     #[arg(long, default_value_t = jawtrack::synth::tmj::FRAMES_PER_SEGMENT)]
     pub frames_per_segment: u32,
     #[command(flatten)]
-    pub lens: LensArgs,
+    pub rig: RigArgs,
     /// Print the report as JSON.
     #[arg(long)]
     pub json: bool,
 }
 
-/// The synthetic rig's lens (`synth`, `bench track`).
+/// The cameras a synthetic capture is filmed with (`synth`, `bench track`).
 #[derive(clap::Args, Clone, Debug)]
-pub struct LensArgs {
+pub struct RigArgs {
+    /// A folder of camera files (`<name>.json`, as in a capture's cameras/) to film with
+    /// instead of the rig of calib/ (three cameras); masks are written at half each camera's
+    /// resolution.
+    #[arg(long)]
+    pub rig: Option<PathBuf>,
     /// Lens distortion for every camera, OpenCV's k1,k2,p1,p2[,k3] (e.g. -0.25,0.08,0,0, a
-    /// moderate barrel): written to the camera files, and the masks are drawn through it.
-    /// Default: none (the rig of calib/ as it is).
+    /// moderate barrel), replacing the camera files': written to the capture's camera files,
+    /// and the masks are drawn through it. Default: the cameras' own (calib/ has none).
     #[arg(long, value_delimiter = ',', allow_hyphen_values = true)]
     pub distortion: Option<Vec<f64>>,
 }
 
-impl LensArgs {
-    pub fn coefficients(&self) -> anyhow::Result<[f64; 5]> {
+impl RigArgs {
+    pub fn distortion(&self) -> anyhow::Result<Option<[f64; 5]>> {
+        let Some(d) = &self.distortion else {
+            return Ok(None);
+        };
+        anyhow::ensure!(
+            (4..=5).contains(&d.len()) && d.iter().all(|x| x.is_finite()),
+            "--distortion: expected 4 or 5 finite numbers (k1,k2,p1,p2[,k3]), found {d:?}"
+        );
         let mut k = [0.0; 5];
-        if let Some(d) = &self.distortion {
-            anyhow::ensure!(
-                (4..=5).contains(&d.len()) && d.iter().all(|x| x.is_finite()),
-                "--distortion: expected 4 or 5 finite numbers (k1,k2,p1,p2[,k3]), found {d:?}"
-            );
-            k[..d.len()].copy_from_slice(d);
-        }
-        Ok(k)
+        k[..d.len()].copy_from_slice(d);
+        Ok(Some(k))
     }
 }
 
@@ -79,7 +85,8 @@ pub fn run(a: Args) -> anyhow::Result<()> {
         no_masks: a.no_masks,
         joint: a.joint,
         frames_per_segment: a.frames_per_segment,
-        distortion: a.lens.coefficients()?,
+        rig: a.rig.rig.clone(),
+        distortion: a.rig.distortion()?,
     };
     let report = generate(&a.out, &opts)?;
     if a.json {

@@ -93,9 +93,13 @@ pub struct SynthOptions {
     /// exercise at this pace plays its beginning; a longer one spreads the whole exercise
     /// over it.
     pub frames_per_segment: u32,
-    /// The cameras' lens distortion, OpenCV's (k1, k2, p1, p2, k3): written to the camera
-    /// files, and the masks are drawn through it. Zeros: the rig of calib/ as it is.
-    pub distortion: [f64; 5],
+    /// A folder of camera files (`<name>.json`, the capture format's) to film with instead of
+    /// the rig of calib/; every camera's masks are written at half its resolution.
+    pub rig: Option<PathBuf>,
+    /// Every camera's lens distortion, OpenCV's (k1, k2, p1, p2, k3), replacing the camera
+    /// files': written to the capture's camera files, and the masks are drawn through it.
+    /// `None` keeps the cameras' own (calib/ has none).
+    pub distortion: Option<[f64; 5]>,
 }
 
 impl Default for SynthOptions {
@@ -110,7 +114,8 @@ impl Default for SynthOptions {
             no_masks: false,
             joint: Joint::Average,
             frames_per_segment: tmj::FRAMES_PER_SEGMENT,
-            distortion: [0.0; 5],
+            rig: None,
+            distortion: None,
         }
     }
 }
@@ -149,7 +154,8 @@ struct Session {
     mandible: Mesh,
     jaw: JawModel,
     lips: [masks::LipLine; 2],
-    cameras: Vec<Camera>,
+    /// Each camera with the text of its file, written to the capture as read.
+    cameras: Vec<(Camera, String)>,
     mask_cameras: Vec<Camera>,
     /// world_from_upper at rest: the upper incisal point at the world origin.
     world_from_upper_rest: Pose,
@@ -169,6 +175,48 @@ pub fn rig_cameras() -> Vec<Camera> {
                 serde_json::from_str(json).expect("calib/ camera files are valid JSON");
             crate::capture::camera_from_json(&cj, &path, name)
                 .expect("calib/ camera files are valid cameras")
+        })
+        .collect()
+}
+
+/// The cameras of a rig folder (every `<name>.json` in it, by name), each with its file's
+/// text; or calib/'s.
+fn load_rig(rig: Option<&Path>) -> Result<Vec<(Camera, String)>> {
+    let Some(dir) = rig else {
+        return Ok(rig_cameras()
+            .into_iter()
+            .zip(RIG)
+            .map(|(c, (_, json))| (c, json.to_string()))
+            .collect());
+    };
+    let entries = std::fs::read_dir(dir).map_err(|e| Error::read(dir, "camera rig folder", e))?;
+    let mut files = Vec::new();
+    for entry in entries {
+        let path = entry
+            .map_err(|e| Error::read(dir, "camera rig folder", e))?
+            .path();
+        if path.extension().is_some_and(|e| e == "json") {
+            files.push(path);
+        }
+    }
+    files.sort();
+    if files.is_empty() {
+        return Err(Error::invalid(
+            dir,
+            "--rig",
+            "holds no camera files (<name>.json, as in a capture's cameras/)",
+        ));
+    }
+    files
+        .iter()
+        .map(|path| {
+            let name = path
+                .file_stem()
+                .and_then(|s| s.to_str())
+                .ok_or_else(|| Error::invalid(path, "file name", "is not valid UTF-8"))?;
+            let text =
+                std::fs::read_to_string(path).map_err(|e| Error::read(path, "camera file", e))?;
+            Ok((crate::capture::read_camera(path, name)?, text))
         })
         .collect()
 }
@@ -220,22 +268,24 @@ impl Session {
         let (llo, lhi) = lower.bounds();
         let lower_incisor =
             Vector3::new((llo[0] + lhi[0]) as f64 * 0.5, lhi[1] as f64, lhi[2] as f64);
-        let mut cameras = rig_cameras();
-        for c in &mut cameras {
-            c.distortion = opts.distortion;
+        let mut cameras = load_rig(opts.rig.as_deref())?;
+        if let Some(d) = opts.distortion {
+            for (c, _) in &mut cameras {
+                c.distortion = d;
+            }
         }
         let mask_cameras: Vec<Camera> = cameras
             .iter()
-            .map(|c| c.scaled_to(c.width / 2, c.height / 2))
+            .map(|(c, _)| c.scaled_to((c.width / 2).max(1), (c.height / 2).max(1)))
             .collect();
         if let Some(c) = mask_cameras.iter().find(|c| !lens_covers_the_image(c)) {
             return Err(Error::invalid(
-                Path::new("--distortion"),
-                "k1, k2, k3",
+                Path::new(&format!("{}.json", c.name)),
+                "distortion",
                 format!(
-                    "{:?} folds back on itself inside {}'s image (the radial model stops growing \
+                    "{:?} folds back on itself inside the image (the radial model stops growing \
                      before the corners): choose a milder lens",
-                    opts.distortion, c.name
+                    c.distortion
                 ),
             ));
         }
@@ -472,7 +522,7 @@ fn write_capture(
     progress: &(dyn Fn() + Sync),
     started: Instant,
 ) -> Result<SynthReport> {
-    let names: Vec<String> = s.cameras.iter().map(|c| c.name.clone()).collect();
+    let names: Vec<String> = s.cameras.iter().map(|(c, _)| c.name.clone()).collect();
     let capture = CaptureJson {
         format: crate::capture::json::CAPTURE_FORMAT.into(),
         cameras: names.clone(),
@@ -504,15 +554,16 @@ fn write_capture(
         },
     };
     write_json_atomic(&dir.join("capture.json"), &capture)?;
-    for (name, json) in RIG {
-        let path = dir.join("cameras").join(format!("{name}.json"));
-        if opts.distortion == [0.0; 5] {
-            write_atomic(&path, json.as_bytes())?;
-        } else {
-            let mut cj: CameraJson =
-                serde_json::from_str(json).expect("calib/ camera files are valid JSON");
-            cj.distortion = Some(opts.distortion.to_vec());
-            write_json_atomic(&path, &cj)?;
+    for (cam, json) in &s.cameras {
+        let path = dir.join("cameras").join(format!("{}.json", cam.name));
+        match opts.distortion {
+            None => write_atomic(&path, json.as_bytes())?,
+            Some(d) => {
+                let mut cj: CameraJson =
+                    serde_json::from_str(json).expect("read as a camera file before");
+                cj.distortion = Some(d.to_vec());
+                write_json_atomic(&path, &cj)?;
+            }
         }
     }
     write_obj(&s.upper, &dir.join("meshes/upper.obj"))?;

@@ -46,7 +46,7 @@ pub fn lens_template(preset: Preset) -> &'static Path {
             frames_per_segment: 1,
             seed: 3,
             preset,
-            distortion: jawtrack::synth::BARREL_LENS,
+            distortion: Some(jawtrack::synth::BARREL_LENS),
             ..SynthOptions::default()
         };
         generate(&dir.path().join("c"), &opts, &|| {}).unwrap();
