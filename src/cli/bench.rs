@@ -97,20 +97,24 @@ fn time(engine: &dyn EnergyEngine, batch: &[ArchPoses], seconds: f64) -> anyhow:
 
 fn energy(a: EnergyArgs) -> anyhow::Result<()> {
     let tmp = tempfile::tempdir()?;
-    // (name, scan folder, how the arches are simplified at load)
+    // (name, scan folder, how the arches are simplified at load, lens)
     let full = OpenOptions {
         max_triangles: None,
         simplify_mm: 0.0,
     };
-    let mut cases: Vec<(String, Option<&Path>, OpenOptions)> =
-        vec![("procedural".into(), None, full)];
+    let lens = Some(jawtrack::synth::BARREL_LENS);
+    let mut cases: Vec<(String, Option<&Path>, OpenOptions, Option<[f64; 5]>)> = vec![
+        ("procedural".into(), None, full, None),
+        ("procedural, barrel lens".into(), None, full, lens),
+    ];
     if a.scans.join("upper.obj").exists() {
         let scans = Some(a.scans.as_path());
-        cases.push(("scan-tag0".into(), scans, full));
+        cases.push(("scan-tag0".into(), scans, full, None));
         cases.push((
             format!("scan-tag0 {} mm", jawtrack::capture::DEFAULT_SIMPLIFY_MM),
             scans,
             OpenOptions::default(),
+            None,
         ));
         cases.push((
             "scan-tag0 simplified".to_string(),
@@ -119,6 +123,7 @@ fn energy(a: EnergyArgs) -> anyhow::Result<()> {
                 max_triangles: Some(a.simplified),
                 ..full
             },
+            None,
         ));
     } else {
         eprintln!("no scans at {}: procedural arch only", a.scans.display());
@@ -128,17 +133,18 @@ fn energy(a: EnergyArgs) -> anyhow::Result<()> {
         adapter: None,
         rows: Vec::new(),
     };
-    for (name, meshes, open) in cases {
-        let dir = tmp.path().join(if meshes.is_some() {
-            "scan"
-        } else {
-            "procedural"
+    for (name, meshes, open, distortion) in cases {
+        let dir = tmp.path().join(match (meshes.is_some(), distortion.is_some()) {
+            (true, _) => "scan",
+            (false, false) => "procedural",
+            (false, true) => "procedural-lens",
         });
         if !dir.exists() {
             let opts = SynthOptions {
                 frames: 6,
                 preset: Preset::Realistic,
                 meshes: meshes.map(Path::to_path_buf),
+                distortion,
                 ..SynthOptions::default()
             };
             generate(&dir, &opts, &|| {}).context("synthesising the benchmark capture")?;
