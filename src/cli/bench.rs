@@ -103,7 +103,8 @@ fn energy(a: EnergyArgs) -> anyhow::Result<()> {
         simplify_mm: 0.0,
     };
     let lens = Some(jawtrack::synth::BARREL_LENS);
-    let mut cases: Vec<(String, Option<&Path>, OpenOptions, Option<[f64; 5]>)> = vec![
+    type Case<'a> = (String, Option<&'a Path>, OpenOptions, Option<[f64; 5]>);
+    let mut cases: Vec<Case> = vec![
         ("procedural".into(), None, full, None),
         ("procedural, barrel lens".into(), None, full, lens),
     ];
