@@ -135,11 +135,13 @@ fn energy(a: EnergyArgs) -> anyhow::Result<()> {
         rows: Vec::new(),
     };
     for (name, meshes, open, distortion) in cases {
-        let dir = tmp.path().join(match (meshes.is_some(), distortion.is_some()) {
-            (true, _) => "scan",
-            (false, false) => "procedural",
-            (false, true) => "procedural-lens",
-        });
+        let dir = tmp
+            .path()
+            .join(match (meshes.is_some(), distortion.is_some()) {
+                (true, _) => "scan",
+                (false, false) => "procedural",
+                (false, true) => "procedural-lens",
+            });
         if !dir.exists() {
             let opts = SynthOptions {
                 frames: 6,

@@ -56,10 +56,14 @@ pub fn print_summary(c: &Capture) {
                 .unwrap_or_else(|| "none".into()),
             in_range,
             c.frame_count,
-            if k.has_distortion() {
-                "yes (models drawn through the lens)"
-            } else {
-                "no"
+            match (k.has_distortion(), k.lens_covers_the_image()) {
+                (false, _) => "no".to_string(),
+                (true, true) => "yes (models drawn through the lens)".to_string(),
+                (true, false) => format!(
+                    "yes, but the model folds back inside the image, {:.0} px from the centre: \
+                     nothing is drawn past it",
+                    k.lens_reach() * k.fx
+                ),
             }
         );
     }

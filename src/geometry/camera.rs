@@ -93,6 +93,29 @@ impl Camera {
         self.camera_from_world.transform_point(p_world)
     }
 
+    /// How far from the principal point (distorted, normalised) the lens model reaches before
+    /// it folds back: the image radius at [`Camera::lens_limit_r2`]; infinite if it never does.
+    pub fn lens_reach(&self) -> f64 {
+        let limit = self.lens_limit_r2();
+        if limit.is_infinite() {
+            return f64::INFINITY;
+        }
+        let [k1, k2, _, _, k3] = self.distortion;
+        limit.sqrt() * (1.0 + limit * (k1 + limit * (k2 + limit * k3)))
+    }
+
+    /// Whether the whole image lies within [`Camera::lens_reach`]. When it does not, the model
+    /// folds back inside the image and nothing is drawn past the fold.
+    pub fn lens_covers_the_image(&self) -> bool {
+        let reach = self.lens_reach();
+        let (w, h) = (self.width as f64 - 1.0, self.height as f64 - 1.0);
+        [(0.0, 0.0), (w, 0.0), (0.0, h), (w, h)]
+            .iter()
+            .all(|&(u, v)| {
+                Vector2::new((u - self.cx) / self.fx, (v - self.cy) / self.fy).norm() < reach
+            })
+    }
+
     /// Apply the distortion model to normalised image coordinates.
     pub fn distort(&self, n: Vector2<f64>) -> Vector2<f64> {
         let [k1, k2, p1, p2, k3] = self.distortion;
@@ -206,6 +229,8 @@ mod tests {
         let cam = test_camera();
         let corner = Vector2::new(cam.cx / cam.fx, cam.cy / cam.fy).norm_squared();
         assert!(cam.lens_limit_r2() > 4.0 * corner);
+        assert!(cam.lens_covers_the_image());
+        assert!(!with([-0.5, 0.0, 0.0, 0.0, 0.0]).lens_covers_the_image());
     }
 
     #[test]

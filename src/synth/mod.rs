@@ -278,7 +278,7 @@ impl Session {
             .iter()
             .map(|(c, _)| c.scaled_to((c.width / 2).max(1), (c.height / 2).max(1)))
             .collect();
-        if let Some(c) = mask_cameras.iter().find(|c| !lens_covers_the_image(c)) {
+        if let Some(c) = mask_cameras.iter().find(|c| !c.lens_covers_the_image()) {
             return Err(Error::invalid(
                 Path::new(&format!("{}.json", c.name)),
                 "distortion",
@@ -368,24 +368,6 @@ impl Session {
             4.0 + 1.0 * (std::f64::consts::TAU * t / 7.0 + self.lip_phase[1]).sin(),
         ]
     }
-}
-
-/// Whether every pixel of `cam`'s image lies within its lens model's reach (the image radius
-/// of [`Camera::lens_limit_r2`] is beyond the corners).
-fn lens_covers_the_image(cam: &Camera) -> bool {
-    let limit = cam.lens_limit_r2();
-    if limit.is_infinite() {
-        return true;
-    }
-    let [k1, k2, _, _, k3] = cam.distortion;
-    let reach = limit.sqrt() * (1.0 + limit * (k1 + limit * (k2 + limit * k3)));
-    let (w, h) = (cam.width as f64 - 1.0, cam.height as f64 - 1.0);
-    [(0.0, 0.0), (w, 0.0), (0.0, h), (w, h)]
-        .iter()
-        .all(|&(u, v)| {
-            let d = nalgebra::Vector2::new((u - cam.cx) / cam.fx, (v - cam.cy) / cam.fy);
-            d.norm() < reach
-        })
 }
 
 /// One camera's mask of one frame, and its statistics.
