@@ -55,8 +55,9 @@ impl Lens {
 }
 
 /// The bounds of what a pinhole rectangle `[lo, hi]` (undistorted pixel coordinates) becomes
-/// through the camera's lens (`lens`, [`Lens::of`] the camera), or `None` when part of it lies
-/// beyond the lens limit. The lens is one-to-one inside its limit, so the rectangle's image is
+/// through the camera's lens (`lens`, [`Lens::of`] the camera), or `None` (take the whole
+/// image) when part of it lies beyond the lens limit or it is over four times the image's size
+/// (points near the camera's plane). The lens is one-to-one inside its limit, so the rectangle's image is
 /// bounded by the image of its border, which is walked in steps of at most 16 pixels. Between
 /// steps an edge bends by about |D''|·16²/8 pixels, D'' the lens's second derivative (about
 /// 6·|k1|·r/f per pixel): 0.1 pixel for k1 = −0.4 at r = 0.7 with f = 515 px (the synthetic
@@ -67,6 +68,9 @@ pub fn bounds_through(
     lo: [f64; 2],
     hi: [f64; 2],
 ) -> Option<([f64; 2], [f64; 2])> {
+    if hi[0] - lo[0] > 4.0 * cam.width as f64 || hi[1] - lo[1] > 4.0 * cam.height as f64 {
+        return None;
+    }
     let mut out = ([f64::INFINITY; 2], [f64::NEG_INFINITY; 2]);
     let (f, c) = ([cam.fx, cam.fy], [cam.cx, cam.cy]);
     let mut visit = |u: f64, v: f64| -> Option<()> {
@@ -154,6 +158,9 @@ mod tests {
         let beyond = camera([-0.5, 0.0, 0.0, 0.0, 0.0]);
         let lens = Lens::of(&beyond).unwrap();
         assert!(bounds_through(&beyond, &lens, [0.0, 0.0], [959.0, 539.0]).is_none());
+        // Far larger than the image: not walked.
+        let lens = Lens::of(&cam).unwrap();
+        assert!(bounds_through(&cam, &lens, [-1e7, 0.0], [1e7, 10.0]).is_none());
     }
 
     /// An independent rendering through the lens: the labels drawn on a pinhole canvas three
