@@ -54,46 +54,50 @@ impl Lens {
     }
 }
 
-/// The bounds of what a pinhole rectangle `[lo, hi]` (undistorted pixel coordinates) becomes
-/// through the camera's lens (`lens`, [`Lens::of`] the camera), or `None` (take the whole
-/// image) when part of it lies beyond the lens limit or it is over four times the image's size
-/// (points near the camera's plane). The lens is one-to-one inside its limit, so the rectangle's image is
-/// bounded by the image of its border, which is walked in steps of at most 16 pixels. Between
-/// steps an edge bends by about |D''|·16²/8 pixels, D'' the lens's second derivative (about
-/// 6·|k1|·r/f per pixel): 0.1 pixel for k1 = −0.4 at r = 0.7 with f = 515 px (the synthetic
-/// rig's half-resolution masks), a few thousandths where the arches are. Callers add a pixel.
+/// The pixel bounds of what a rectangle `[lo, hi]` of undistorted normalised coordinates
+/// becomes through the camera's lens (`lens`, [`Lens::of`] the camera), or `None` (take the
+/// whole image) when part of it lies beyond the lens limit or it spans over four times the
+/// image (points near the camera's plane). The lens is one-to-one inside its limit, so the
+/// rectangle's image is bounded by the image of its border, which is walked in steps of at
+/// most 16 pixels. Between steps an edge bends by about |D''|·16²/8 pixels, D'' the lens's
+/// second derivative (about 6·|k1|·r/f per pixel): 0.1 pixel for k1 = −0.4 at r = 0.7 with
+/// f = 515 px (the synthetic rig's half-resolution masks), a few thousandths where the arches
+/// are. Callers add a pixel.
 pub fn bounds_through(
     cam: &Camera,
     lens: &Lens,
     lo: [f64; 2],
     hi: [f64; 2],
 ) -> Option<([f64; 2], [f64; 2])> {
-    if hi[0] - lo[0] > 4.0 * cam.width as f64 || hi[1] - lo[1] > 4.0 * cam.height as f64 {
+    let f = [cam.fx, cam.fy];
+    let span = [0, 1].map(|k| (hi[k] - lo[k]) * f[k]);
+    if span[0] > 4.0 * cam.width as f64 || span[1] > 4.0 * cam.height as f64 {
         return None;
     }
-    let mut out = ([f64::INFINITY; 2], [f64::NEG_INFINITY; 2]);
-    let (f, c) = ([cam.fx, cam.fy], [cam.cx, cam.cy]);
-    let mut visit = |u: f64, v: f64| -> Option<()> {
-        let d = lens.apply(((u - c[0]) / f[0]) as f32, ((v - c[1]) / f[1]) as f32)?;
-        let p = [0, 1].map(|k| f[k] * d[k] as f64 + c[k]);
-        out.0 = [out.0[0].min(p[0]), out.0[1].min(p[1])];
-        out.1 = [out.1[0].max(p[0]), out.1[1].max(p[1])];
+    let (mut dlo, mut dhi) = ([f32::INFINITY; 2], [f32::NEG_INFINITY; 2]);
+    let mut visit = |x: f64, y: f64| -> Option<()> {
+        let d = lens.apply(x as f32, y as f32)?;
+        dlo = [dlo[0].min(d[0]), dlo[1].min(d[1])];
+        dhi = [dhi[0].max(d[0]), dhi[1].max(d[1])];
         Some(())
     };
-    let steps = |a: f64, b: f64| (((b - a) / 16.0).ceil() as usize).max(1);
-    let (nu, nv) = (steps(lo[0], hi[0]), steps(lo[1], hi[1]));
+    let [nu, nv] = span.map(|s| ((s / 16.0).ceil() as usize).max(1));
     // Top and bottom edges, corners included, then the sides between them.
     for i in 0..=nu {
-        let u = lo[0] + (hi[0] - lo[0]) * i as f64 / nu as f64;
-        visit(u, lo[1])?;
-        visit(u, hi[1])?;
+        let x = lo[0] + (hi[0] - lo[0]) * i as f64 / nu as f64;
+        visit(x, lo[1])?;
+        visit(x, hi[1])?;
     }
     for j in 1..nv {
-        let v = lo[1] + (hi[1] - lo[1]) * j as f64 / nv as f64;
-        visit(lo[0], v)?;
-        visit(hi[0], v)?;
+        let y = lo[1] + (hi[1] - lo[1]) * j as f64 / nv as f64;
+        visit(lo[0], y)?;
+        visit(hi[0], y)?;
     }
-    Some(out)
+    let c = [cam.cx, cam.cy];
+    Some((
+        [0, 1].map(|k| f[k] * dlo[k] as f64 + c[k]),
+        [0, 1].map(|k| f[k] * dhi[k] as f64 + c[k]),
+    ))
 }
 
 #[cfg(test)]
@@ -134,7 +138,9 @@ mod tests {
     fn a_rectangles_bounds_through_the_lens_hold_its_points() {
         let cam = camera([-0.25, 0.08, 0.001, -0.0005, 0.0]);
         let (lo, hi) = ([100.0, 50.0], [700.0, 400.0]);
-        let (blo, bhi) = bounds_through(&cam, &Lens::of(&cam).unwrap(), lo, hi).unwrap();
+        let to_n = |p: [f64; 2]| [(p[0] - cam.cx) / cam.fx, (p[1] - cam.cy) / cam.fy];
+        let lens = Lens::of(&cam).unwrap();
+        let (blo, bhi) = bounds_through(&cam, &lens, to_n(lo), to_n(hi)).unwrap();
         let mut touched = [false; 4];
         for i in 0..=60 {
             for j in 0..=35 {
@@ -156,11 +162,10 @@ mod tests {
         // Barrel: the far corner comes in.
         assert!(bhi[0] < hi[0] - 5.0);
         let beyond = camera([-0.5, 0.0, 0.0, 0.0, 0.0]);
-        let lens = Lens::of(&beyond).unwrap();
-        assert!(bounds_through(&beyond, &lens, [0.0, 0.0], [959.0, 539.0]).is_none());
+        let folding = Lens::of(&beyond).unwrap();
+        assert!(bounds_through(&beyond, &folding, [-0.93, -0.52], [0.93, 0.52]).is_none());
         // Far larger than the image: not walked.
-        let lens = Lens::of(&cam).unwrap();
-        assert!(bounds_through(&cam, &lens, [-1e7, 0.0], [1e7, 10.0]).is_none());
+        assert!(bounds_through(&cam, &lens, [-1e4, 0.0], [1e4, 0.01]).is_none());
     }
 
     /// An independent rendering through the lens: the labels drawn on a pinhole canvas three

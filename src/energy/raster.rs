@@ -146,16 +146,16 @@ impl Affine {
 /// box's corners), clamped to the image; the whole image if a point is behind the near plane
 /// (or beyond the lens's limit). `lens`: [`Lens::of`] the camera.
 pub fn footprint(cam: &Camera, lens: Option<&Lens>, points: &[[f32; 3]]) -> Rect {
+    // Bounds in normalised coordinates first.
     let (mut lo, mut hi) = ([f64::INFINITY; 2], [f64::NEG_INFINITY; 2]);
     for p in points {
         let z = p[2] as f64;
         if z < NEAR_MM {
             return Rect::full(cam.width, cam.height);
         }
-        let u = cam.fx * p[0] as f64 / z + cam.cx;
-        let v = cam.fy * p[1] as f64 / z + cam.cy;
-        lo = [lo[0].min(u), lo[1].min(v)];
-        hi = [hi[0].max(u), hi[1].max(v)];
+        let n = [p[0] as f64 / z, p[1] as f64 / z];
+        lo = [lo[0].min(n[0]), lo[1].min(n[1])];
+        hi = [hi[0].max(n[0]), hi[1].max(n[1])];
     }
     if points.is_empty() {
         return Rect {
@@ -165,16 +165,20 @@ pub fn footprint(cam: &Camera, lens: Option<&Lens>, points: &[[f32; 3]]) -> Rect
             height: 0,
         };
     }
-    // Through the lens: the pinhole rectangle's image, one more pixel for the f32 projection
-    // and the walk's steps.
-    let mut slack = 1.0;
-    if let Some(lens) = lens {
-        match bounds_through(cam, lens, lo, hi) {
-            Some(b) => (lo, hi) = b,
+    // In pixels; through the lens, the rectangle's image with one more pixel for the f32
+    // projection and the walk's steps.
+    let (f, c) = ([cam.fx, cam.fy], [cam.cx, cam.cy]);
+    let (lo, hi, slack) = match lens {
+        None => (
+            [0, 1].map(|k| f[k] * lo[k] + c[k]),
+            [0, 1].map(|k| f[k] * hi[k] + c[k]),
+            1.0,
+        ),
+        Some(lens) => match bounds_through(cam, lens, lo, hi) {
+            Some((lo, hi)) => (lo, hi, 2.0),
             None => return Rect::full(cam.width, cam.height),
-        }
-        slack = 2.0;
-    }
+        },
+    };
     // Pixel centres strictly inside the float bounds, plus one pixel for snapping.
     let x0 = (lo[0].floor() - slack).clamp(0.0, cam.width as f64) as u32;
     let y0 = (lo[1].floor() - slack).clamp(0.0, cam.height as f64) as u32;
