@@ -14,42 +14,43 @@ pub fn template(preset: Preset, masks: MaskKind) -> &'static Path {
         Preset::Realistic => 1,
         Preset::Hard => 2,
     };
-    let cell = &CELLS[p * 2 + (masks == MaskKind::Combined) as usize];
-    cell.get_or_init(|| {
-        let dir = tempfile::tempdir().unwrap();
-        let opts = SynthOptions {
-            frames: 6,
-            // A segment of the exercise a frame: six different jaw poses.
-            frames_per_segment: 1,
-            seed: 3,
-            preset,
+    written_once(
+        &CELLS[p * 2 + (masks == MaskKind::Combined) as usize],
+        || SynthOptions {
             masks,
-            ..SynthOptions::default()
-        };
-        generate(&dir.path().join("c"), &opts, &|| {}).unwrap();
-        dir
-    })
-    .path()
-    .join("c")
-    .leak()
+            ..template_options(preset)
+        },
+    )
 }
 
-/// The realistic per-arch template's subject filmed through a barrel lens
+/// The per-arch template for `preset` filmed through a barrel lens
 /// ([`BARREL_LENS`](jawtrack::synth::BARREL_LENS)), written once per test binary.
 pub fn lens_template(preset: Preset) -> &'static Path {
     static CELLS: [OnceLock<tempfile::TempDir>; 3] = [const { OnceLock::new() }; 3];
-    let cell = &CELLS[preset as usize];
+    written_once(&CELLS[preset as usize], || SynthOptions {
+        distortion: Some(jawtrack::synth::BARREL_LENS),
+        ..template_options(preset)
+    })
+}
+
+/// Six frames, a segment of the exercise a frame: six different jaw poses.
+fn template_options(preset: Preset) -> SynthOptions {
+    SynthOptions {
+        frames: 6,
+        frames_per_segment: 1,
+        seed: 3,
+        preset,
+        ..SynthOptions::default()
+    }
+}
+
+fn written_once(
+    cell: &'static OnceLock<tempfile::TempDir>,
+    opts: impl FnOnce() -> SynthOptions,
+) -> &'static Path {
     cell.get_or_init(|| {
         let dir = tempfile::tempdir().unwrap();
-        let opts = SynthOptions {
-            frames: 6,
-            frames_per_segment: 1,
-            seed: 3,
-            preset,
-            distortion: Some(jawtrack::synth::BARREL_LENS),
-            ..SynthOptions::default()
-        };
-        generate(&dir.path().join("c"), &opts, &|| {}).unwrap();
+        generate(&dir.path().join("c"), &opts(), &|| {}).unwrap();
         dir
     })
     .path()
