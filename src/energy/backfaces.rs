@@ -19,7 +19,10 @@ use std::collections::HashMap;
 use crate::capture::Mesh;
 use crate::capture::mesh::signed_volume;
 
-/// Which snapped signed area (see `raster`) marks a face turned away from the camera.
+/// Which snapped signed area (see `raster`) marks a face turned away from the camera. With
+/// image y pointing down and the camera looking along +z, a face whose normal (right-hand rule
+/// over its vertex order) points away from the camera has a positive snapped area: `Positive`
+/// for a closed mesh wound outwards ([`oriented_outwards`]).
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
 pub enum AwaySign {
     Positive,
@@ -37,36 +40,12 @@ impl AwaySign {
     }
 }
 
-/// For a closed, consistently oriented mesh whose parts (connected pieces) all turn the same
-/// way, the sign of its faces turned away from a camera outside it; `None` for any other mesh.
-///
-/// With image y pointing down and the camera looking along +z, a face whose normal (right-hand
-/// rule over its vertex order) points away from the camera has a positive snapped area; parts
-/// whose normals point inwards (negative enclosed volume) flip that. A mesh with parts turned
-/// both ways gets `None`: for an inside-out part, the first face a ray meets faces away.
-pub fn away_sign(mesh: &Mesh) -> Option<AwaySign> {
-    // Rewinding leaves every face of a mesh that already qualifies as it is, or turns every
-    // one of them (the same part order and start faces, each part flipped as a whole).
-    let outwards = oriented_outwards(mesh)?;
-    let turned = |t: &[u32; 3]| [t[0], t[2], t[1]];
-    if outwards.triangles == mesh.triangles {
-        Some(AwaySign::Positive)
-    } else if (outwards.triangles.iter())
-        .zip(&mesh.triangles)
-        .all(|(o, t)| *o == turned(t))
-    {
-        Some(AwaySign::Negative)
-    } else {
-        None
-    }
-}
-
-/// The mesh with its faces re-wound so that it qualifies for [`away_sign`] with every part
-/// turned outwards, when that is possible: every edge shared by exactly two faces and each
-/// part orientable. Winding changes no pixel the rasteriser draws (it reads facing only to
-/// leave faces out), so a closed mesh written with some faces the wrong way round (the
-/// procedural crowns' tip caps, or another program's export) can still have its back faces
-/// left out. `None` for an open or non-manifold mesh, or a non-orientable one.
+/// The mesh with its faces re-wound so that every part is turned outwards (its faces turned
+/// away then have [`AwaySign::Positive`]), when that is possible: every edge shared by exactly
+/// two faces and each part orientable. Winding changes no pixel the rasteriser draws (it reads
+/// facing only to leave faces out), so a closed mesh written with some faces the wrong way
+/// round (the procedural crowns' tip caps, or another program's export) can still have its
+/// back faces left out. `None` for an open or non-manifold mesh, or a non-orientable one.
 pub fn oriented_outwards(mesh: &Mesh) -> Option<Mesh> {
     // Faces on each undirected edge; a closed manifold has exactly two per edge.
     let mut on_edge: HashMap<(u32, u32), Vec<usize>> = HashMap::new();
@@ -137,6 +116,28 @@ pub fn oriented_outwards(mesh: &Mesh) -> Option<Mesh> {
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    /// The sign of a mesh's faces turned away, as it is wound: `Positive` when every part is
+    /// already turned outwards (rewinding changes nothing), `Negative` when every part is
+    /// inside out (rewinding turns every face), `None` for any other mesh (open, non-manifold,
+    /// or with parts turned both ways: for an inside-out part, the first face a ray meets
+    /// faces away).
+    fn away_sign(mesh: &Mesh) -> Option<AwaySign> {
+        // Rewinding leaves every face of a mesh that already qualifies as it is, or turns every
+        // one of them (the same part order and start faces, each part flipped as a whole).
+        let outwards = oriented_outwards(mesh)?;
+        let turned = |t: &[u32; 3]| [t[0], t[2], t[1]];
+        if outwards.triangles == mesh.triangles {
+            Some(AwaySign::Positive)
+        } else if (outwards.triangles.iter())
+            .zip(&mesh.triangles)
+            .all(|(o, t)| *o == turned(t))
+        {
+            Some(AwaySign::Negative)
+        } else {
+            None
+        }
+    }
 
     /// A unit cube, outward faces (right-hand rule).
     fn cube() -> Mesh {
@@ -248,7 +249,7 @@ mod tests {
             placed.leave_out_faces_turned_away(away);
             let mut t = Target::default();
             t.reset(Rect::full(100, 80));
-            raster::rasterise(&cam, &m, &placed, CLASS_BODY, CLASS_BOI, &mut t);
+            raster::rasterise(&m, &placed, CLASS_BODY, CLASS_BOI, &mut t);
             t.class
         };
         let all = draw(None);

@@ -121,7 +121,7 @@ impl CpuEnergy {
                 placed.place(cam, mesh, &cam.camera_from_world.compose(pose));
                 let mut target = Target::default();
                 target.reset(placed.footprint(cam));
-                raster::rasterise(cam, mesh, &placed, class, class, &mut target);
+                raster::rasterise(mesh, &placed, class, class, &mut target);
                 Some(target)
             })
             .collect();
@@ -217,7 +217,7 @@ fn render(
     s.target.reset(rect);
     s.target.copy_from(other);
     match skip {
-        None => raster::rasterise(cam, mesh, &s.scored, CLASS_BODY, CLASS_BOI, &mut s.target),
+        None => raster::rasterise(mesh, &s.scored, CLASS_BODY, CLASS_BOI, &mut s.target),
         Some(skip) => {
             s.scored.leave_out_faces_turned_away(skip.away);
             let relevance = Relevance {
@@ -233,7 +233,6 @@ fn render(
                     }
                 }
                 raster::rasterise_body_where(
-                    cam,
                     mesh,
                     cluster.faces.clone(),
                     &s.scored,

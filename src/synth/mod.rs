@@ -216,7 +216,8 @@ fn load_rig(rig: Option<&Path>) -> Result<Vec<(Camera, String)>> {
                 .ok_or_else(|| Error::invalid(path, "file name", "is not valid UTF-8"))?;
             let text =
                 std::fs::read_to_string(path).map_err(|e| Error::read(path, "camera file", e))?;
-            Ok((crate::capture::read_camera(path, name)?, text))
+            let cj: CameraJson = crate::capture::json::parse_json(&text, path)?;
+            Ok((crate::capture::camera_from_json(&cj, path, name)?, text))
         })
         .collect()
 }
