@@ -26,6 +26,7 @@ fn capture(meshes: Option<&Path>, dir: &Path, max_triangles: Option<usize>) -> C
     let open = OpenOptions {
         max_triangles,
         simplify_mm: 0.0,
+        ..OpenOptions::default()
     };
     Capture::open_with(dir, open).expect("open the benchmark capture")
 }

@@ -1,6 +1,7 @@
 //! Synthetic captures load back through the reader, deterministically; on clean captures the
 //! energy is (nearly) zero at the truth and rises for any single degree of freedom moved by
-//! 0.5 mm or 0.5°; the paper's bootstrap recovers first-frame poses.
+//! 0.5 mm or 0.5°; the paper's bootstrap recovers first-frame poses; masks read at half their
+//! resolution line up with the scaled cameras.
 
 mod common;
 
@@ -157,11 +158,12 @@ fn another_rig_and_a_lens_are_written_as_given() {
 }
 
 /// Each of the six pose parameters moved by ±0.5 mm or ±0.5°.
-fn single_dof_moves(truth: &ArchPoses, arch: Arch) -> Vec<ArchPoses> {
+/// Each degree of freedom moved by `step` (degrees or mm) either way.
+fn single_dof_moves(truth: &ArchPoses, arch: Arch, step: f64) -> Vec<ArchPoses> {
     (0..12)
         .map(|k| {
             let mut d = [0.0; 6];
-            let step = if k / 2 < 3 { 0.5f64.to_radians() } else { 0.5 };
+            let step = if k / 2 < 3 { step.to_radians() } else { step };
             d[k / 2] = if k % 2 == 0 { step } else { -step };
             truth.with(arch, truth.get(arch).with_euler_offset(&d))
         })
@@ -183,7 +185,7 @@ fn truth_is_the_minimum(masks: MaskKind) {
                 "frame {f} {arch:?}: {at_truth:?}"
             );
             let moved = engine
-                .evaluate(arch, &single_dof_moves(&truth, arch))
+                .evaluate(arch, &single_dof_moves(&truth, arch, 0.5))
                 .unwrap();
             for (k, e) in moved.iter().enumerate() {
                 assert!(
@@ -262,4 +264,101 @@ fn the_energy_region_skips_body_faces_without_changing_the_energy() {
         let c = Capture::open(template(Preset::Realistic, masks)).unwrap();
         assert!(common::energy_region_matches_footprint(&c, 3.0) >= 100);
     }
+}
+
+#[test]
+fn masks_read_at_a_fraction_of_their_resolution_line_up_with_the_cameras() {
+    use jawtrack::capture::OpenOptions;
+    let dir = template(Preset::Clean, MaskKind::PerArch);
+    let open = |k: u32| {
+        Capture::open_with(
+            dir,
+            OpenOptions {
+                mask_reduce: k,
+                ..OpenOptions::default()
+            },
+        )
+    };
+    let (full, half) = (open(1).unwrap(), open(2).unwrap());
+    let frame = full.frames().start + 3;
+    let (mf, mh) = (
+        full.load_masks(frame).unwrap(),
+        half.load_masks(frame).unwrap(),
+    );
+    for (i, cam) in half.cameras.iter().enumerate() {
+        let (w, h) = full.cameras[i].mask_size.unwrap();
+        assert_eq!(cam.mask_size, Some((w / 2, h / 2)));
+        let m = mh.masks[i].as_ref().unwrap();
+        assert_eq!((m.width, m.height), (w / 2, h / 2));
+        // Each block's majority, ties alternating: the teeth keep their area within the
+        // share of pixels an edge crosses.
+        let mf = mf.masks[i].as_ref().unwrap();
+        for bit in [1, 2] {
+            let (a, b) = (mf.count(bit) as f64, 4.0 * m.count(bit) as f64);
+            assert!(
+                (a - b).abs() < 0.05 * a,
+                "camera {i} label {bit}: {a} against {b}"
+            );
+        }
+    }
+    // Against an independent drawing: the two arches rendered straight into the scaled
+    // cameras at the truth differ from the reduced masks only along edges, and less than when
+    // drawn half a pixel to any side (the scaling's pixel-centre convention).
+    let truth = half.gt_poses(frame).unwrap();
+    for (i, cam) in half.cameras.iter().enumerate() {
+        let m = mh.masks[i].as_ref().unwrap();
+        let cam = cam.mask_camera().unwrap();
+        let differ = |dx: f64, dy: f64| {
+            let cam = jawtrack::geometry::Camera {
+                cx: cam.cx + dx,
+                cy: cam.cy + dy,
+                ..cam.clone()
+            };
+            let drawn = jawtrack::energy::raster::render_labels(
+                &cam,
+                &[
+                    (&half.upper, &truth.upper, 1, 1),
+                    (&half.lower, &truth.lower, 2, 2),
+                ],
+            );
+            drawn.iter().zip(&m.data).filter(|(a, b)| a != b).count()
+        };
+        let aligned = differ(0.0, 0.0);
+        let teeth = m.data.iter().filter(|&&v| v != 0).count();
+        assert!(
+            aligned * 20 < teeth,
+            "camera {i}: {aligned} of {teeth} differ"
+        );
+        for (dx, dy) in [(0.5, 0.0), (-0.5, 0.0), (0.0, 0.5), (0.0, -0.5)] {
+            let shifted = differ(dx, dy);
+            assert!(
+                aligned * 5 < shifted * 4,
+                "camera {i}: {aligned} differ, {shifted} half a pixel off ({dx}, {dy})"
+            );
+        }
+    }
+    // The scaled cameras see the reduced masks where the models are: at the truth only edge
+    // pixels are left uncovered (the clean masks' area error is 0 at full resolution), and a
+    // millimetre's move costs several times more.
+    let mut engine = CpuEnergy::new(Scene::from_capture(&half));
+    engine.set_frame(&mh).unwrap();
+    for arch in Arch::BOTH {
+        let at_truth = engine.evaluate(arch, &[truth]).unwrap().remove(0);
+        assert!(at_truth.area_error() < 0.03, "{arch:?}: {at_truth:?}");
+        let moved = single_dof_moves(&truth, arch, 1.0);
+        for (k, e) in engine.evaluate(arch, &moved).unwrap().iter().enumerate() {
+            assert!(
+                e.total(DEFAULT_LAMBDA) > at_truth.total(DEFAULT_LAMBDA),
+                "{arch:?} move {k}: {} against {} at the truth",
+                e.total(DEFAULT_LAMBDA),
+                at_truth.total(DEFAULT_LAMBDA)
+            );
+        }
+    }
+    // A factor that does not divide the masks' sides is refused, naming the folder and field.
+    let err = open(7).unwrap_err().to_string();
+    assert!(
+        err.contains("cam0") && err.contains("size") && err.contains("1/7"),
+        "{err}"
+    );
 }

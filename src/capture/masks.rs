@@ -1,5 +1,6 @@
 //! Segmentation masks: decoded per frame into label masks (bit 0: upper arch, bit 1: lower
-//! arch) at the mask resolution, with lens distortion removed once per camera.
+//! arch) at the mask resolution (or 1/k of it, [`LabelMask::reduced`]), as the cameras saw
+//! them: with lens distortion, the energy draws the models through the lens.
 
 use std::path::Path;
 
@@ -52,6 +53,40 @@ impl LabelMask {
     pub fn count(&self, bit: u8) -> u64 {
         self.data.iter().filter(|&&v| v & bit != 0).count() as u64
     }
+
+    /// The mask at 1/`k` of its resolution (`k` divides both sides): each k x k block takes its
+    /// most common label. Ties (half the block teeth, along every edge when k = 2) go by a
+    /// checkerboard over the blocks, so that an edge moves neither in nor out on average.
+    pub fn reduced(self, k: u32) -> LabelMask {
+        if k <= 1 {
+            return self;
+        }
+        let (w, h) = (self.width / k, self.height / k);
+        let mut data = Vec::with_capacity((w * h) as usize);
+        for by in 0..h {
+            for bx in 0..w {
+                let mut votes = [0u32; 4];
+                for y in by * k..(by + 1) * k {
+                    let row = (y * self.width) as usize;
+                    for x in bx * k..(bx + 1) * k {
+                        votes[(self.data[row + x as usize] & 3) as usize] += 1;
+                    }
+                }
+                let most = *votes.iter().max().expect("four labels");
+                let tied = votes.iter().filter(|&&v| v == most).count();
+                let label = (0..4u8)
+                    .filter(|&l| votes[l as usize] == most)
+                    .nth((bx + by) as usize % tied)
+                    .expect("a tied label");
+                data.push(label);
+            }
+        }
+        LabelMask {
+            width: w,
+            height: h,
+            data,
+        }
+    }
 }
 
 fn open_image(path: &Path) -> Result<image::ImageReader<std::io::BufReader<std::fs::File>>> {
@@ -99,4 +134,53 @@ pub fn decode_mask(path: &Path, mode: MaskMode) -> Result<LabelMask> {
         height,
         data: grey.into_iter().map(|v| mode.label_of(v)).collect(),
     })
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    fn mask(width: u32, rows: &[&[u8]]) -> LabelMask {
+        LabelMask {
+            width,
+            height: rows.len() as u32,
+            data: rows.concat(),
+        }
+    }
+
+    #[test]
+    fn a_reduced_mask_takes_each_blocks_most_common_label() {
+        let m = mask(
+            6,
+            &[
+                &[1, 1, 2, 2, 0, 0],
+                &[1, 0, 2, 1, 0, 1],
+                &[0, 0, 1, 1, 2, 2],
+                &[0, 0, 0, 0, 0, 0],
+            ],
+        );
+        let r = m.clone().reduced(2);
+        assert_eq!((r.width, r.height), (3, 2));
+        // Blocks: 3 upper of 4; 3 lower of 4; 3 none of 4; all none; then ties: 2 upper
+        // against 2 none at (1, 1), 2 lower against 2 none at (2, 1).
+        let tie = |bx: u32, by: u32, labels: &[u8]| labels[((bx + by) % 2) as usize];
+        assert_eq!(
+            r.data,
+            vec![1, 2, 0, 0, tie(1, 1, &[0, 1]), tie(2, 1, &[0, 2]),]
+        );
+        assert_eq!(m.clone().reduced(1), m);
+    }
+
+    #[test]
+    fn ties_alternate_so_an_edge_keeps_its_place_on_average() {
+        // A vertical edge through the middle of every 2 x 2 block: half the blocks keep the
+        // teeth, half do not.
+        let rows: Vec<Vec<u8>> = (0..8)
+            .map(|_| (0..16).map(|x| u8::from(x % 2 == 0)).collect())
+            .collect();
+        let refs: Vec<&[u8]> = rows.iter().map(Vec::as_slice).collect();
+        let m = mask(16, &refs);
+        let r = m.clone().reduced(2);
+        assert_eq!(r.count(UPPER_BIT) * 4, m.count(UPPER_BIT));
+    }
 }

@@ -81,7 +81,9 @@ impl ArchPoses {
 pub struct CaptureCamera {
     /// As calibrated (full resolution, distortion included).
     pub calibrated: Camera,
-    /// Mask size (all masks of a camera share it); `None` when the camera has no masks.
+    /// Mask size as the energy sees it (all masks of a camera share it; divided by
+    /// [`OpenOptions::mask_reduce`] when the capture was opened so); `None` when the camera has
+    /// no masks.
     pub mask_size: Option<(u32, u32)>,
     /// Frames with a mask file.
     pub frames_present: BTreeSet<u32>,
@@ -136,6 +138,8 @@ pub struct Capture {
     pub mandible: Option<Mesh>,
     pub mask_dir: PathBuf,
     pub mask_mode: MaskMode,
+    /// Masks are read at 1/`mask_reduce` of their resolution ([`OpenOptions::mask_reduce`]).
+    pub mask_reduce: u32,
     pub init: Option<Init>,
     pub gt: Option<Vec<FramePoses>>,
 }
@@ -155,6 +159,10 @@ pub struct OpenOptions {
     /// Otherwise simplify each arch as far as its surface stays within this distance (mm) of
     /// the scan's; 0 keeps every triangle. See [`DEFAULT_SIMPLIFY_MM`].
     pub simplify_mm: f64,
+    /// Read the masks at 1/k of their resolution (each k x k block takes its most common
+    /// label; the cameras are scaled as for any smaller mask): the energy's cost falls with the
+    /// pixel count, its precision with the pixel size. 1 reads them as they are.
+    pub mask_reduce: u32,
 }
 
 /// The default simplification bound: 0.02 mm, about a twentieth of a pixel of a GoPro's
@@ -167,6 +175,7 @@ impl Default for OpenOptions {
         OpenOptions {
             max_triangles: None,
             simplify_mm: DEFAULT_SIMPLIFY_MM,
+            mask_reduce: 1,
         }
     }
 }
@@ -259,6 +268,9 @@ impl Capture {
         for name in &cj.cameras {
             let calibrated = read_camera(&dir.join("cameras").join(format!("{name}.json")), name)?;
             let (mask_size, frames_present) = scan_masks(&mask_dir.join(name))?;
+            let mask_size = mask_size
+                .map(|size| reduced_size(size, options.mask_reduce, &mask_dir.join(name)))
+                .transpose()?;
             cameras.push(CaptureCamera {
                 calibrated,
                 mask_size,
@@ -326,6 +338,7 @@ impl Capture {
             mandible,
             mask_dir,
             mask_mode,
+            mask_reduce: options.mask_reduce.max(1),
             init: None,
             gt: None,
         };
@@ -374,9 +387,10 @@ impl Capture {
             }
             let path = self.mask_path(i, frame);
             let mask = masks::decode_mask(&path, self.mask_mode)?;
-            let expected = cam
+            let (w, h) = cam
                 .mask_size
                 .expect("a camera with mask files has a mask size");
+            let expected = (w * self.mask_reduce, h * self.mask_reduce);
             if (mask.width, mask.height) != expected {
                 return Err(Error::invalid(
                     &path,
@@ -387,7 +401,7 @@ impl Capture {
                     ),
                 ));
             }
-            masks.push(Some(mask));
+            masks.push(Some(mask.reduced(self.mask_reduce)));
         }
         Ok(FrameMasks { frame, masks })
     }
@@ -597,6 +611,24 @@ pub fn camera_from_json(cj: &CameraJson, path: &Path, name: &str) -> Result<Came
 /// List a camera's mask files and check that they share one size (headers only).
 /// What a camera's mask folder holds: the masks' common size and the frames present.
 type MaskScan = (Option<(u32, u32)>, BTreeSet<u32>);
+
+/// A camera's mask size read at 1/`k` of its resolution; `k` must divide both sides (so that
+/// the scaled intrinsics stay exact).
+fn reduced_size((w, h): (u32, u32), k: u32, cam_dir: &Path) -> Result<(u32, u32)> {
+    if k <= 1 {
+        return Ok((w, h));
+    }
+    if w % k != 0 || h % k != 0 {
+        return Err(Error::invalid(
+            cam_dir,
+            "size",
+            format!(
+                "masks of {w}x{h} cannot be read at 1/{k} of their resolution: {k} must divide both sides"
+            ),
+        ));
+    }
+    Ok((w / k, h / k))
+}
 
 fn scan_masks(cam_dir: &Path) -> Result<MaskScan> {
     let mut frames = BTreeSet::new();

@@ -99,8 +99,8 @@ fn energy(a: EnergyArgs) -> anyhow::Result<()> {
     let tmp = tempfile::tempdir()?;
     // (name, scan folder, how the arches are simplified at load, lens)
     let full = OpenOptions {
-        max_triangles: None,
         simplify_mm: 0.0,
+        ..OpenOptions::default()
     };
     let lens = Some(jawtrack::synth::BARREL_LENS);
     type Case<'a> = (String, Option<&'a Path>, OpenOptions, Option<[f64; 5]>);
@@ -279,9 +279,10 @@ pub struct TrackArgs {
     /// file, or the JSON itself when it starts with `{`.
     #[arg(long)]
     settings: Option<PathBuf>,
-    /// How the meshes are simplified at load (for tracking, the floor and the score alike).
+    /// How the meshes are simplified and the masks read at load (for tracking, the floor and
+    /// the score alike).
     #[command(flatten)]
-    simplify: super::energy::MeshArgs,
+    load: super::energy::LoadArgs,
     #[command(flatten)]
     engine: super::energy::EngineArgs,
 }
@@ -382,7 +383,7 @@ pub fn track(a: TrackArgs) -> anyhow::Result<()> {
                 ..SynthOptions::default()
             };
             generate(&dir, &opts, &|| {}).context("synthesising")?;
-            let capture = Capture::open_with(&dir, a.simplify.open_options())?;
+            let capture = Capture::open_with(&dir, a.load.open_options())?;
             let out = dir.join("tracks.json");
             let args = super::track::Args {
                 capture: dir.clone(),
@@ -392,7 +393,7 @@ pub fn track(a: TrackArgs) -> anyhow::Result<()> {
                 overlays: None,
                 resume: false,
                 force: true,
-                meshes: a.simplify,
+                load: a.load,
                 settings: a.settings.clone(),
             };
             let summary = super::track::track(&capture, &args)?;

@@ -76,7 +76,7 @@ pub fn run(a: Args) -> anyhow::Result<()> {
         overlays: Some(overlays.clone()),
         resume: false,
         force: true,
-        meshes: Default::default(),
+        load: Default::default(),
         settings: None,
     };
     let summary = super::track::track(&capture, &args)?;

@@ -23,14 +23,15 @@ pub struct Args {
     #[arg(long, default_value_t = DEFAULT_LAMBDA)]
     pub lambda: f64,
     #[command(flatten)]
-    pub meshes: MeshArgs,
+    pub load: LoadArgs,
     #[command(flatten)]
     pub engine: EngineArgs,
 }
 
-/// How the arches are simplified at load (shared by the commands that evaluate energies).
+/// How a capture is loaded: the arches' simplification and the masks' resolution (shared by
+/// the commands that evaluate energies).
 #[derive(clap::Args, Clone, Copy)]
-pub struct MeshArgs {
+pub struct LoadArgs {
     /// Simplify each arch to at most this many triangles at load (instead of --simplify-mm).
     #[arg(long)]
     pub max_triangles: Option<usize>,
@@ -38,23 +39,30 @@ pub struct MeshArgs {
     /// scan's; 0 keeps every triangle (a silhouette needs far fewer than a scan has).
     #[arg(long, default_value_t = jawtrack::capture::DEFAULT_SIMPLIFY_MM)]
     pub simplify_mm: f64,
+    /// Read the masks at 1/K of their resolution (each K x K block's most common label; K
+    /// must divide the masks' sides): for masks much larger than the teeth need, e.g. 4K
+    /// video's, the energy costs about K² times less, its pixels are K times coarser.
+    #[arg(long, default_value_t = 1, value_name = "K", value_parser = clap::value_parser!(u32).range(1..=16))]
+    pub mask_reduce: u32,
 }
 
-impl MeshArgs {
+impl LoadArgs {
     pub fn open_options(&self) -> OpenOptions {
         OpenOptions {
             max_triangles: self.max_triangles,
             simplify_mm: self.simplify_mm,
+            mask_reduce: self.mask_reduce,
         }
     }
 }
 
-impl Default for MeshArgs {
+impl Default for LoadArgs {
     fn default() -> Self {
         let o = OpenOptions::default();
-        MeshArgs {
+        LoadArgs {
             max_triangles: o.max_triangles,
             simplify_mm: o.simplify_mm,
+            mask_reduce: o.mask_reduce,
         }
     }
 }
@@ -75,7 +83,7 @@ pub struct EngineArgs {
 }
 
 pub fn run(a: Args) -> anyhow::Result<()> {
-    let capture = Capture::open_with(&a.capture, a.meshes.open_options())
+    let capture = Capture::open_with(&a.capture, a.load.open_options())
         .with_context(|| format!("invalid capture {}", a.capture.display()))?;
     if !capture.frames().contains(&a.frame) {
         return Err(anyhow!(

@@ -32,7 +32,7 @@ pub struct Args {
     #[arg(long)]
     pub force: bool,
     #[command(flatten)]
-    pub meshes: super::energy::MeshArgs,
+    pub load: super::energy::LoadArgs,
     /// Tracking settings as JSON (the fields of `TrackSettings`; see README; missing ones take
     /// their defaults, unknown ones are an error): a file, or the JSON itself when it starts
     /// with `{`, e.g. '{"search": {"lambda": 1.0}}'.
@@ -80,7 +80,7 @@ fn parse_range(s: &str, capture: &Capture) -> anyhow::Result<std::ops::Range<u32
 }
 
 pub fn run(a: Args) -> anyhow::Result<()> {
-    let capture = Capture::open_with(&a.capture, a.meshes.open_options())
+    let capture = Capture::open_with(&a.capture, a.load.open_options())
         .with_context(|| format!("invalid capture {}", a.capture.display()))?;
     let summary = track(&capture, &a)?;
     print_summary(&a.output, &summary);
