@@ -346,7 +346,7 @@ fn floor_poses(
             &poses,
             *poses.get(arch),
             &centre,
-            None,
+            &jawtrack::track::penalties::Penalties::NONE,
             &fine,
             frame as u64,
         )?;

@@ -11,7 +11,7 @@
 
 use nalgebra::Vector3;
 
-use crate::capture::{ArchPoses, Mesh};
+use crate::capture::Mesh;
 use crate::geometry::Pose;
 
 /// Column width of the height map (mm), and the most columns along a side (a mesh with stray
@@ -140,12 +140,13 @@ impl Contact {
         }
     }
 
-    /// The objective's penalty for these poses: `weight` per mm of depth past the tolerance.
-    pub fn penalty(&self, poses: &ArchPoses) -> f64 {
+    /// The objective's penalty for this jaw pose (upper_from_lower): `weight` per mm of depth
+    /// past the tolerance.
+    pub fn penalty(&self, jaw: &Pose) -> f64 {
         if self.weight == 0.0 {
             return 0.0;
         }
-        self.weight * (self.depth(&poses.jaw()) - self.tolerance_mm).max(0.0)
+        self.weight * (self.depth(jaw) - self.tolerance_mm).max(0.0)
     }
 
     /// The tolerance in force (the setting, or more: see [`Contact::new`]).
@@ -157,6 +158,7 @@ impl Contact {
 #[cfg(test)]
 mod tests {
     use super::*;
+    use crate::capture::ArchPoses;
     use crate::synth::arches::{procedural_arch, rest_bite};
 
     const SETTINGS: ContactSettings = ContactSettings {
@@ -200,13 +202,9 @@ mod tests {
     #[test]
     fn the_penalty_starts_past_the_tolerance() {
         let (contact, rest) = setup();
-        let poses = |jaw: Pose| ArchPoses {
-            upper: Pose::IDENTITY,
-            lower: jaw,
-        };
-        assert_eq!(contact.penalty(&poses(rest)), 0.0);
+        assert_eq!(contact.penalty(&rest), 0.0);
         let at_rest = contact.depth(&rest);
-        let p = contact.penalty(&poses(raised(&contact, &rest, 3.0)));
+        let p = contact.penalty(&raised(&contact, &rest, 3.0));
         assert!((p - 100.0 * (at_rest + 3.0 - 1.0)).abs() < 1e-6, "{p}");
         // The jaw is what counts: both arches moved together change nothing.
         let shift = Pose::from_translation(Vector3::new(5.0, -3.0, 2.0));
@@ -214,7 +212,11 @@ mod tests {
             upper: shift,
             lower: shift.compose(&raised(&contact, &rest, 3.0)),
         };
-        assert!((contact.penalty(&moved) - p).abs() < 1e-6);
+        let penalties = super::super::penalties::Penalties {
+            contact: Some(contact),
+            manifold: None,
+        };
+        assert!((penalties.of(&moved) - p).abs() < 1e-6);
     }
 
     #[test]

@@ -1,11 +1,14 @@
 //! Tracking: the pose search per arch and frame (`search`), the frame loop around it
-//! (`sequence`), the jaw prior's starts (`prior`), the arches' non-penetration (`contact`),
+//! (`sequence`), the jaw prior's starts (`prior`), what anatomy adds to the objective
+//! (`penalties`: the arches' non-penetration, `contact`, and the jaw's manifold, `manifold`),
 //! tracks.json as it is written (`output`), scoring against ground truth (`score`) and
 //! overlays (`overlay`).
 
 pub mod contact;
+pub mod manifold;
 pub mod output;
 pub mod overlay;
+pub mod penalties;
 pub mod prior;
 pub mod score;
 pub mod search;

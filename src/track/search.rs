@@ -10,7 +10,7 @@
 use nalgebra::Vector3;
 use rand::{RngExt, SeedableRng};
 
-use super::contact::Contact;
+use super::penalties::Penalties;
 use crate::capture::{Arch, ArchPoses};
 use crate::energy::{Energy, EnergyEngine};
 use crate::error::Result;
@@ -92,7 +92,7 @@ struct Objective<'a> {
     centre: Vector3<f64>,
     lambda: f64,
     cross_weight: f64,
-    contact: Option<&'a Contact>,
+    penalties: &'a Penalties,
     evaluations: usize,
 }
 
@@ -111,10 +111,6 @@ impl Objective<'_> {
             .collect()
     }
 
-    fn penalty(&self, poses: &ArchPoses) -> f64 {
-        self.contact.map_or(0.0, |c| c.penalty(poses))
-    }
-
     /// The objective and the energy of each candidate.
     fn evaluate(&mut self, ds: &[[f64; 6]]) -> Result<Vec<(f64, Energy)>> {
         let candidates = self.candidates(ds);
@@ -124,7 +120,7 @@ impl Objective<'_> {
         Ok(energies
             .into_iter()
             .zip(&candidates)
-            .map(|(e, c)| (e.objective(lambda, cross) + self.penalty(c), e))
+            .map(|(e, c)| (e.objective(lambda, cross) + self.penalties.of(c), e))
             .collect())
     }
 
@@ -154,8 +150,8 @@ pub const RADIUS_MM: f64 = 30.0;
 const GOLDEN: f64 = 0.618_033_988_749_894_9;
 
 /// Search the pose of `arch` from `start` (the other arch held at its pose in `context`).
-/// `centre` is the arch's centre in its model frame; `contact`, if given, adds its penalty to
-/// the objective; `seed` makes the sampling repeatable.
+/// `centre` is the arch's centre in its model frame; `penalties` are added to the objective
+/// ([`Penalties::NONE`] for the energy alone); `seed` makes the sampling repeatable.
 #[allow(clippy::too_many_arguments)]
 pub fn search(
     engine: &dyn EnergyEngine,
@@ -163,7 +159,7 @@ pub fn search(
     context: &ArchPoses,
     start: Pose,
     centre: &Vector3<f64>,
-    contact: Option<&Contact>,
+    penalties: &Penalties,
     s: &SearchSettings,
     seed: u64,
 ) -> Result<Found> {
@@ -175,7 +171,7 @@ pub fn search(
         centre: start.transform_point(centre),
         lambda: s.lambda,
         cross_weight: s.cross_weight,
-        contact,
+        penalties,
         evaluations: 0,
     };
     let mut best = [0.0; 6];

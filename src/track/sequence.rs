@@ -10,6 +10,8 @@ use std::time::Instant;
 use nalgebra::Vector3;
 
 use super::contact::{Contact, ContactSettings};
+use super::manifold::JawManifold;
+use super::penalties::Penalties;
 use super::prior::JawPrior;
 use super::search::{RADIUS_MM, SearchSettings, search};
 use crate::capture::{Arch, ArchPoses, Capture, FrameMasks, MaskMode};
@@ -54,6 +56,15 @@ pub struct TrackSettings {
     /// axis) costs `contact_weight` objective units (pixels) per mm beyond. 0 turns it off.
     pub contact_weight: f64,
     pub contact_tolerance_mm: f64,
+    /// The jaw moves on a low-dimensional manifold (`manifold`): every candidate whose jaw
+    /// pose lies more than `jaw_manifold_tolerance_mm` from the average joint's (the three
+    /// principal directions of the jaw prior's fine grid, in the rig's se(3) coordinates)
+    /// costs `jaw_manifold_weight` objective units per mm beyond. It steers both arches
+    /// along the directions the energy cannot tell apart (a tilt about the incisal edge).
+    /// Per-arch masks only: with a combined mask, where one label cannot tell the arches
+    /// apart, it made the jaw worse (README). 0 turns it off.
+    pub jaw_manifold_weight: f64,
+    pub jaw_manifold_tolerance_mm: f64,
 }
 
 impl Default for TrackSettings {
@@ -73,6 +84,8 @@ impl Default for TrackSettings {
             restarts: 1,
             contact_weight: 100.0,
             contact_tolerance_mm: 1.0,
+            jaw_manifold_weight: 60.0,
+            jaw_manifold_tolerance_mm: 0.3,
         }
     }
 }
@@ -180,6 +193,17 @@ pub fn track_frames(
             },
         )
     });
+    let per_arch = matches!(capture.mask_mode, MaskMode::PerArch { .. });
+    let manifold =
+        (per_arch && settings.jaw_manifold_weight > 0.0 && prior.fine.len() >= 4).then(|| {
+            JawManifold::new(
+                &prior.fine,
+                &capture.lower,
+                settings.jaw_manifold_weight,
+                settings.jaw_manifold_tolerance_mm,
+            )
+        });
+    let penalties = Penalties { contact, manifold };
     std::thread::scope(|scope| {
         let (tx, rx) = sync_channel::<(u32, Result<FrameMasks>)>(2);
         let reader_frames = frames.clone();
@@ -194,15 +218,7 @@ pub fn track_frames(
             let started = Instant::now();
             let masks = masks?;
             let result = track_frame(
-                capture,
-                engine,
-                settings,
-                &centres,
-                &prior,
-                contact.as_ref(),
-                frame,
-                &masks,
-                state,
+                capture, engine, settings, &centres, &prior, &penalties, frame, &masks, state,
             )?;
             let result = FrameResult {
                 seconds: started.elapsed().as_secs_f64(),
@@ -221,7 +237,7 @@ fn track_frame(
     settings: &TrackSettings,
     centres: &[Vector3<f64>; 2],
     prior: &JawPrior,
-    contact: Option<&Contact>,
+    penalties: &Penalties,
     frame: u32,
     masks: &FrameMasks,
     state: &mut TrackState,
@@ -284,7 +300,7 @@ fn track_frame(
                 let scores: Vec<f64> = e
                     .iter()
                     .zip(&options)
-                    .map(|(e, o)| objective(e) + contact.map_or(0.0, |c| c.penalty(o)))
+                    .map(|(e, o)| objective(e) + penalties.of(o))
                     .collect();
                 best_distinct(arch, &options, &scores, settings.restarts)
             } else {
@@ -302,7 +318,7 @@ fn track_frame(
                     start,
                     *start.get(arch),
                     &centres[(arch == Arch::Lower) as usize],
-                    contact,
+                    penalties,
                     &settings.search,
                     seed,
                 )?;
