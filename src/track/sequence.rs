@@ -62,7 +62,8 @@ pub struct TrackSettings {
     /// costs `jaw_manifold_weight` objective units per mm beyond. It steers both arches
     /// along the directions the energy cannot tell apart (a tilt about the incisal edge).
     /// Per-arch masks only: with a combined mask, where one label cannot tell the arches
-    /// apart, it made the jaw worse (README). 0 turns it off.
+    /// apart, it made the jaw worse (README). Built from the fine grid, so off with it too;
+    /// 0 turns it off.
     pub jaw_manifold_weight: f64,
     pub jaw_manifold_tolerance_mm: f64,
 }
