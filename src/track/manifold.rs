@@ -40,9 +40,6 @@ impl JawManifold {
 
     /// The objective's penalty: `weight` per mm beyond the tolerance.
     pub fn penalty(&self, jaw: &Pose) -> f64 {
-        if self.weight == 0.0 {
-            return 0.0;
-        }
         self.weight * (self.distance_mm(jaw) - self.tolerance_mm).max(0.0)
     }
 }
