@@ -40,11 +40,41 @@ pub enum Error {
     /// The GPU energy engine could not start or run. (Part of the message, not a `#[source]`,
     /// so anyhow does not print it twice.)
     #[error("GPU: {0}")]
-    Gpu(crate::energy::gpu::GpuError),
+    Gpu(GpuError),
 }
 
-impl From<crate::energy::gpu::GpuError> for Error {
-    fn from(e: crate::energy::gpu::GpuError) -> Self {
+/// Why the GPU energy engine could not start or run. It lives here, beside [`Error`], so that
+/// the error type depends on nothing above it.
+#[derive(Debug, thiserror::Error)]
+pub enum GpuError {
+    /// No adapter, or none matching `wanted` (the adapter variable and its value, e.g.
+    /// `JAWTRACK_ADAPTER="llvmpipe"`).
+    #[error(
+        "no GPU adapter{}; available: {}",
+        wanted.as_ref().map(|w| format!(" matching {w}")).unwrap_or_default(),
+        if available.is_empty() { "none".to_string() } else { available.join(", ") }
+    )]
+    NoAdapter {
+        wanted: Option<String>,
+        available: Vec<String>,
+    },
+    #[error("cannot open a device on {0}")]
+    Device(String),
+    #[error("reading the counts back failed: {0}")]
+    Readback(String),
+    #[error(
+        "camera `{camera}`: masks of {width}x{height} exceed the GPU atlas page ({page}x{page})"
+    )]
+    MaskTooLarge {
+        camera: String,
+        width: u32,
+        height: u32,
+        page: u32,
+    },
+}
+
+impl From<GpuError> for Error {
+    fn from(e: GpuError) -> Self {
         Error::Gpu(e)
     }
 }

@@ -4,6 +4,7 @@
 //! Data flows one way: [`capture`] → [`energy`] → track → rig. [`geometry`] is shared;
 //! [`synth`] writes synthetic captures with ground truth.
 
+pub mod anatomy;
 pub mod capture;
 pub mod energy;
 pub mod envelope;

@@ -4,9 +4,10 @@
 use std::path::Path;
 use std::sync::OnceLock;
 
+use jawtrack::anatomy::MeshMetric;
 use jawtrack::capture::{BoiSource, Mesh};
 use jawtrack::rig::eval::{reconstruction, sampled};
-use jawtrack::rig::{JawPoses, JawRig, MeshMetric, read_jaw_poses, write_jaw_poses};
+use jawtrack::rig::{JawPoses, JawRig, read_jaw_poses, write_jaw_poses};
 use jawtrack::synth::{SynthOptions, generate};
 
 struct Fixture {

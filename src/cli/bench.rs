@@ -267,7 +267,7 @@ pub struct TrackArgs {
     joint: jawtrack::synth::Joint,
     /// The movements' pace (see `synth --frames-per-segment`); 4 is about the pace this
     /// bench's 34-frame captures had before the option (4.25: the exercise's core squeezed in).
-    #[arg(long, default_value_t = jawtrack::synth::tmj::FRAMES_PER_SEGMENT)]
+    #[arg(long, default_value_t = jawtrack::synth::exercise::FRAMES_PER_SEGMENT)]
     frames_per_segment: u32,
     /// A folder with upper.* and lower.* to use instead of procedural arches (e.g. the real
     /// scans, ../shared/data/scan-tag0).

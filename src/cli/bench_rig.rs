@@ -4,7 +4,8 @@ use std::path::PathBuf;
 use std::time::Instant;
 
 use anyhow::Context;
-use jawtrack::rig::{JawRig, MeshMetric, RigSettings, read_jaw_poses};
+use jawtrack::anatomy::MeshMetric;
+use jawtrack::rig::{JawRig, RigSettings, read_jaw_poses};
 use jawtrack::synth::{SynthOptions, generate};
 use rand::SeedableRng;
 use serde::Serialize;
@@ -72,7 +73,7 @@ pub fn rig(a: RigArgs) -> anyhow::Result<()> {
 
     let t = Instant::now();
     let poses = read_jaw_poses(&capture.join("gt/poses.json"))?;
-    let coords = jawtrack::rig::Coordinates::for_mesh(&metric);
+    let coords = jawtrack::anatomy::Coordinates::for_mesh(&metric);
     let vectors: Vec<_> = poses.poses.iter().map(|p| coords.vector(p)).collect();
     let extraction_ms = t.elapsed().as_secs_f64() * 1e3;
     std::hint::black_box(vectors);

@@ -93,7 +93,7 @@ pub fn run(a: Args) -> anyhow::Result<()> {
     let poses = jawtrack::rig::read_jaw_poses(&tracks)?;
     // The error is measured on the mandible when the capture has one.
     let metric =
-        jawtrack::rig::MeshMetric::new(reopened.mandible.as_ref().unwrap_or(&reopened.lower));
+        jawtrack::anatomy::MeshMetric::new(reopened.mandible.as_ref().unwrap_or(&reopened.lower));
     let rig = super::rig::learn_rig(&poses, &metric, &Default::default())?;
     rig.save(&rig_path)?;
     let report = super::rig::evaluate_rig(&rig, &poses.poses, &metric, 0, 0, false)?;

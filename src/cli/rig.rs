@@ -4,11 +4,12 @@ use std::path::{Path, PathBuf};
 use std::time::Instant;
 
 use anyhow::{Context, bail};
+use jawtrack::anatomy::MeshMetric;
 use jawtrack::capture::{BoiSource, Mesh};
 use jawtrack::geometry::Pose;
 use jawtrack::rig::eval::{self, Reconstruction, Sampled, Series};
 use jawtrack::rig::model::NETWORK_COMPONENTS;
-use jawtrack::rig::{JawPoses, JawRig, MeshMetric, Nlpca, RigSettings, read_jaw_poses};
+use jawtrack::rig::{JawPoses, JawRig, Nlpca, RigSettings, read_jaw_poses};
 use serde::Serialize;
 
 #[derive(clap::Subcommand)]

@@ -35,7 +35,7 @@ pub struct Args {
     pub joint: Joint,
     /// The movements' pace: frames each segment of the exercise (e.g. rest to wide open)
     /// takes at least; 20 (0.83 s at the synthetic 24 fps) is an unhurried human pace.
-    #[arg(long, default_value_t = jawtrack::synth::tmj::FRAMES_PER_SEGMENT)]
+    #[arg(long, default_value_t = jawtrack::synth::exercise::FRAMES_PER_SEGMENT)]
     pub frames_per_segment: u32,
     #[command(flatten)]
     pub rig: RigArgs,

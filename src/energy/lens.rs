@@ -236,10 +236,10 @@ mod tests {
     #[test]
     fn the_energys_lens_draws_what_an_exact_rendering_draws() {
         let arches = [
-            crate::synth::arches::procedural_arch(true),
-            crate::synth::arches::procedural_arch(false),
+            crate::anatomy::procedural_arch(true),
+            crate::anatomy::procedural_arch(false),
         ];
-        let rest = crate::synth::arches::rest_bite(&arches[0], &arches[1]);
+        let rest = crate::anatomy::rest_bite(&arches[0], &arches[1]);
         for distortion in [
             [0.0; 5],
             [-0.25, 0.08, 0.001, -0.0005, 0.0],

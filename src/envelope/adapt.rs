@@ -27,8 +27,8 @@ use serde::{Deserialize, Serialize};
 
 use super::frame::JawFrame;
 use super::model::{EnvelopeError, EnvelopeRig};
+use crate::anatomy::MeshMetric;
 use crate::geometry::{Pose, so3_exp, so3_log};
-use crate::rig::MeshMetric;
 
 /// The measured poses' order.
 pub const EXTREMES: [&str; 5] = ["open", "left", "right", "front", "back"];

@@ -11,8 +11,9 @@ use serde::Serialize;
 use super::frame::JawFrame;
 use super::model::{EnvelopeError, EnvelopeRig};
 use super::traditional::{Dofs, TraditionalRig};
+use crate::anatomy::{Coordinates, MeshMetric, Pca};
 use crate::geometry::Pose;
-use crate::rig::{Coordinates, JawRig, MeshMetric, Pca, RigError, RigSettings};
+use crate::rig::{JawRig, RigError, RigSettings};
 use crate::stats::Stats;
 
 #[derive(Debug, Clone, Serialize)]

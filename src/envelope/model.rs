@@ -10,11 +10,11 @@ use super::frame::{FrameError, JawFrame};
 use super::rbf::Rbf;
 use super::shield::{Shield, ShieldError};
 use super::traditional::{Dofs, TraditionalRig};
+use crate::anatomy::MeshMetric;
 use crate::capture::json::read_json;
 use crate::capture::write_json_atomic;
 use crate::error::{Error, Result};
 use crate::geometry::Pose;
-use crate::rig::MeshMetric;
 
 pub const ENVELOPE_FORMAT: &str = "jawtrack-envelope/1";
 

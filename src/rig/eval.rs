@@ -8,11 +8,11 @@ use rand_chacha::ChaCha8Rng;
 use rayon::prelude::*;
 use serde::Serialize;
 
-use super::coords::Coordinates;
-use super::metric::MeshMetric;
 use super::model::JawRig;
 use super::nlpca::Nlpca;
-use super::pca::Pca;
+use crate::anatomy::Coordinates;
+use crate::anatomy::MeshMetric;
+use crate::anatomy::Pca;
 use crate::geometry::Pose;
 
 pub use crate::stats::Stats;

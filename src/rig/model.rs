@@ -23,11 +23,11 @@ use nalgebra::{Vector3, Vector6};
 use serde::{Deserialize, Serialize};
 
 use super::additive::{self, AdditiveModes, AdditiveReport, AdditiveSettings};
-use super::coords::Coordinates;
-use super::metric::MeshMetric;
 use super::nlpca::{Nlpca, NlpcaError, NlpcaSettings, TrainReport};
-use super::pca::Pca;
 use super::ranges::{RangeError, Ranges};
+use crate::anatomy::Coordinates;
+use crate::anatomy::MeshMetric;
+use crate::anatomy::Pca;
 use crate::capture::json::read_json;
 use crate::capture::write_json_atomic;
 use crate::error::{Error, Result};

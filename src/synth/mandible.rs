@@ -5,8 +5,7 @@
 
 use nalgebra::Vector3;
 
-use super::rings::stitch_rings;
-use super::tmj::JawModel;
+use crate::anatomy::{JawModel, stitch_rings};
 use crate::capture::Mesh;
 
 const RING: usize = 12;

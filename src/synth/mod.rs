@@ -3,11 +3,9 @@
 //! calib/, masks at half resolution with lips and segmentation noise per preset. Writes the
 //! capture format exactly, deterministically per seed.
 
-pub mod arches;
+pub mod exercise;
 pub mod mandible;
 pub mod masks;
-mod rings;
-pub mod tmj;
 
 use std::path::{Path, PathBuf};
 use std::time::Instant;
@@ -17,6 +15,7 @@ use rand::{RngExt, SeedableRng};
 use rand_chacha::ChaCha8Rng;
 use rayon::prelude::*;
 
+use crate::anatomy::{JawControls, JawModel, procedural_arch, rest_bite};
 use crate::capture::json::{
     ArchInitJson, BoiJson, CameraJson, CaptureJson, FrameRecordJson, FramesJson, InitJson,
     MasksJson, MeshesJson, TracksJson,
@@ -26,7 +25,7 @@ use crate::capture::{Arch, ArchPoses, BoiSource, Mesh, write_atomic, write_json_
 use crate::energy::raster::render_labels;
 use crate::error::{Error, Result};
 use crate::geometry::{Camera, Pose};
-use tmj::{JawControls, JawModel, exercise_controls};
+use exercise::exercise_controls;
 
 /// The example rig in calib/, compiled in: what `synth` films with.
 pub const RIG: [(&str, &str); 3] = [
@@ -113,7 +112,7 @@ impl Default for SynthOptions {
             force: false,
             no_masks: false,
             joint: Joint::Average,
-            frames_per_segment: tmj::FRAMES_PER_SEGMENT,
+            frames_per_segment: exercise::FRAMES_PER_SEGMENT,
             rig: None,
             distortion: None,
         }
@@ -253,12 +252,9 @@ impl Session {
         let mut rng = ChaCha8Rng::seed_from_u64(opts.seed);
         let (upper, lower) = match &opts.meshes {
             Some(dir) => (load_arch(dir, Arch::Upper)?, load_arch(dir, Arch::Lower)?),
-            None => (
-                arches::procedural_arch(true),
-                arches::procedural_arch(false),
-            ),
+            None => (procedural_arch(true), procedural_arch(false)),
         };
-        let rest = arches::rest_bite(&upper, &lower);
+        let rest = rest_bite(&upper, &lower);
         let jaw = match opts.joint {
             Joint::Average => JawModel::for_arches(&upper, rest),
             Joint::Variant => JawModel::variant_for_arches(&upper, rest),
@@ -327,7 +323,7 @@ impl Session {
         // `hard` moves twice as fast.
         let repeats = if opts.preset == Preset::Hard { 2 } else { 1 };
         let segments = (opts.frames as f64 / opts.frames_per_segment.max(1) as f64)
-            .min(tmj::ALL_SEGMENTS as f64);
+            .min(exercise::ALL_SEGMENTS as f64);
         exercise_controls(tau, segments, repeats, &self.gain)
     }
 

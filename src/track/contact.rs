@@ -158,8 +158,8 @@ impl Contact {
 #[cfg(test)]
 mod tests {
     use super::*;
+    use crate::anatomy::{procedural_arch, rest_bite};
     use crate::capture::ArchPoses;
-    use crate::synth::arches::{procedural_arch, rest_bite};
 
     const SETTINGS: ContactSettings = ContactSettings {
         weight: 100.0,

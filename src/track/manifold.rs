@@ -5,11 +5,9 @@
 
 use nalgebra::Vector6;
 
+use crate::anatomy::{Coordinates, MeshMetric, Pca};
 use crate::capture::Mesh;
 use crate::geometry::Pose;
-use crate::rig::coords::Coordinates;
-use crate::rig::metric::MeshMetric;
-use crate::rig::pca::Pca;
 
 #[derive(Debug, Clone)]
 pub struct JawManifold {
@@ -49,8 +47,7 @@ mod tests {
     use nalgebra::Vector3;
 
     use super::*;
-    use crate::synth::arches::{procedural_arch, rest_bite};
-    use crate::synth::tmj::{JawControls, JawModel};
+    use crate::anatomy::{JawControls, JawModel, procedural_arch, rest_bite};
     use crate::track::prior::JawPrior;
 
     #[test]

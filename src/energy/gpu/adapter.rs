@@ -59,7 +59,10 @@ pub fn open() -> Result<GpuContext, GpuError> {
     let adapter = adapters
         .into_iter()
         .next()
-        .ok_or(GpuError::NoAdapter { wanted, available })?;
+        .ok_or_else(|| GpuError::NoAdapter {
+            wanted: wanted.map(|w| format!("{ADAPTER_ENV}={w:?}")),
+            available,
+        })?;
     let info = adapter.get_info();
     let (device, queue) = pollster::block_on(adapter.request_device(&wgpu::DeviceDescriptor {
         label: Some("jawtrack energy"),

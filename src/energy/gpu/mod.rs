@@ -16,6 +16,7 @@ use nalgebra::Matrix4;
 
 use wgpu::util::DeviceExt;
 
+pub use crate::error::GpuError;
 pub use adapter::{ADAPTER_ENV, GpuContext};
 
 use super::lens::Lens;
@@ -24,28 +25,6 @@ use super::{Counts, Energy, EnergyEngine, Region, Scene, counts_with_outside, ma
 use crate::capture::{Arch, ArchPoses, FrameMasks, Mesh};
 use crate::error::Result;
 use crate::geometry::{Camera, Pose};
-
-#[derive(Debug, thiserror::Error)]
-pub enum GpuError {
-    #[error("no GPU adapter{}; available: {}", wanted.as_ref().map(|w| format!(" matching {}={w:?}", adapter::ADAPTER_ENV)).unwrap_or_default(), if available.is_empty() { "none".to_string() } else { available.join(", ") })]
-    NoAdapter {
-        wanted: Option<String>,
-        available: Vec<String>,
-    },
-    #[error("cannot open a device on {0}")]
-    Device(String),
-    #[error("reading the counts back failed: {0}")]
-    Readback(String),
-    #[error(
-        "camera `{camera}`: masks of {width}x{height} exceed the GPU atlas page ({page}x{page})"
-    )]
-    MaskTooLarge {
-        camera: String,
-        width: u32,
-        height: u32,
-        page: u32,
-    },
-}
 
 /// How the counts are made.
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]

@@ -5,7 +5,7 @@ use crate::capture::Mesh;
 
 /// Stitch `rings` consecutive rings of `segments` vertices each, starting at vertex `base`,
 /// with two triangles per quad; each ring closes on itself.
-pub(super) fn stitch_rings(mesh: &mut Mesh, base: u32, rings: usize, segments: usize) {
+pub(crate) fn stitch_rings(mesh: &mut Mesh, base: u32, rings: usize, segments: usize) {
     let at = |r: usize, k: usize| base + (r * segments + k % segments) as u32;
     for r in 0..rings - 1 {
         for k in 0..segments {
