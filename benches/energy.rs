@@ -64,7 +64,7 @@ fn bench_energy(c: &mut Criterion) {
         let mut engines: Vec<(String, Box<dyn EnergyEngine>)> = Vec::new();
         engines.push((
             "cpu-Energy".into(),
-            Box::new(CpuEnergy::with_region(scene.clone(), Region::Energy)),
+            Box::new(CpuEnergy::with_region(scene.clone(), Region::Relevant)),
         ));
         for region in [Region::Footprint, Region::FullFrame] {
             engines.push((

@@ -11,6 +11,7 @@ pub mod envelope;
 pub mod error;
 pub mod geometry;
 pub mod rig;
+pub mod settings;
 pub mod stats;
 pub mod synth;
 pub mod track;

@@ -121,7 +121,7 @@ fn compare_on_synthetic(capture: &std::path::Path, what: &str) {
     let mut readback = GpuEnergy::readback_baseline(scene.clone()).unwrap();
     let mut cpu = CpuEnergy::new(scene.clone());
     // What tracking uses: the same energy, body faces off the mask skipped.
-    let mut cpu_energy = CpuEnergy::with_region(scene, Region::Energy);
+    let mut cpu_energy = CpuEnergy::with_region(scene, Region::Relevant);
     let mut worst = 0.0f64;
     let mut worst_region = 0u64;
     let mut differing = 0usize;

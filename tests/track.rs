@@ -165,7 +165,7 @@ fn frames_without_masks_keep_the_last_pose_and_tracking_recovers() {
     let status: Vec<&str> = tj
         .frames
         .iter()
-        .map(|f| f.status.as_deref().unwrap())
+        .map(|f| f.status.unwrap().as_str())
         .collect();
     assert_eq!(status, ["ok", "ok", "no-data", "ok", "ok"]);
     assert_eq!(

@@ -149,8 +149,40 @@ pub struct FrameRecordJson {
     pub energy: Option<serde_json::Value>,
     #[serde(default, skip_serializing_if = "Option::is_none")]
     pub area_error: Option<serde_json::Value>,
+    /// Absent in files that do not say (ground truth): such a frame counts as `ok`.
     #[serde(default, skip_serializing_if = "Option::is_none")]
-    pub status: Option<String>,
+    pub status: Option<Status>,
+}
+
+impl FrameRecordJson {
+    /// The frame's status; a record that does not give one (ground truth) is `ok`.
+    pub fn status(&self) -> Status {
+        self.status.unwrap_or(Status::Ok)
+    }
+}
+
+/// How a tracked frame came out (the spec's `status`).
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Serialize, Deserialize)]
+#[serde(rename_all = "kebab-case")]
+pub enum Status {
+    Ok,
+    /// The energy says the fit is poor.
+    LowConfidence,
+    /// No camera had a mask.
+    NoData,
+}
+
+impl Status {
+    pub const ALL: [Status; 3] = [Status::Ok, Status::LowConfidence, Status::NoData];
+
+    /// The spec's spelling.
+    pub fn as_str(self) -> &'static str {
+        match self {
+            Status::Ok => "ok",
+            Status::LowConfidence => "low-confidence",
+            Status::NoData => "no-data",
+        }
+    }
 }
 
 /// Read and parse a JSON file; a missing file is [`Error::Missing`] with `what`.

@@ -1,7 +1,10 @@
 use std::path::PathBuf;
 
 use jawtrack::capture::Capture;
-use jawtrack::synth::{MaskKind, Preset, SynthOptions};
+use jawtrack::energy::Region;
+use jawtrack::synth::{MaskKind, SynthOptions};
+
+use super::args::PresetArg;
 
 #[derive(clap::Args)]
 pub struct Args {
@@ -20,10 +23,10 @@ pub struct Args {
     #[arg(long, default_value_t = 0)]
     pub seed: u64,
     /// Synthetic preset.
-    #[arg(long, value_enum, default_value_t = Preset::Realistic)]
-    pub preset: Preset,
+    #[arg(long, value_enum, default_value_t = PresetArg::Realistic)]
+    pub preset: PresetArg,
     #[command(flatten)]
-    pub engine: super::energy::EngineArgs,
+    pub engine: super::args::EngineArgs,
 }
 
 /// The main job on a built-in default: synthesise, track, score.
@@ -35,7 +38,7 @@ pub fn run(a: Args) -> anyhow::Result<()> {
     let opts = SynthOptions {
         frames: a.frames,
         seed: a.seed,
-        preset: a.preset,
+        preset: a.preset.into(),
         masks: MaskKind::PerArch,
         meshes: None,
         force,
@@ -48,14 +51,14 @@ pub fn run(a: Args) -> anyhow::Result<()> {
         distortion: None,
     };
     println!(
-        "== 1. synthesise a {:?} capture: three cameras, half-resolution masks",
-        a.preset
+        "== 1. synthesise a {} capture: three cameras, half-resolution masks",
+        super::args::name_of(&a.preset)
     );
-    let report = super::synth::generate(&out, &opts)?;
-    super::synth::print_report(&out, &report);
+    let report = super::run::synthesise(&out, &opts)?;
+    super::report::synth(&out, &report);
 
     println!("\n== 2. read it back");
-    let capture = super::validate::open_and_check(&out, true)?;
+    let capture = super::run::open_and_check(&out, true)?;
     println!(
         "{} cameras, frames {}..{}, meshes {} + {} triangles",
         capture.cameras.len(),
@@ -68,24 +71,20 @@ pub fn run(a: Args) -> anyhow::Result<()> {
     println!("\n== 3. track both arches from init.json, frame after frame");
     let tracks = out.join("tracks.json");
     let overlays = out.join("overlays");
-    let args = super::track::Args {
-        capture: out.clone(),
-        output: tracks.clone(),
-        frames: None,
-        engine: a.engine,
+    let options = jawtrack::track::SessionOptions {
+        backend: a.engine.backend.into(),
+        region: a.engine.region.map_or(Region::Relevant, Into::into),
         overlays: Some(overlays.clone()),
-        resume: false,
         force: true,
-        load: Default::default(),
-        settings: None,
+        ..jawtrack::track::SessionOptions::new(&tracks)
     };
-    let summary = super::track::track(&capture, &args)?;
-    super::track::print_summary(&tracks, &summary);
+    let summary = super::run::track(&capture, options)?;
+    super::report::track_summary(&tracks, &summary);
 
     println!("\n== 4. score against the ground truth");
     let reopened = Capture::open(&out)?;
-    if let Some(r) = super::track::score_records(&reopened, &tracks, &summary.records)? {
-        super::track::print_score(&r);
+    if let Some(r) = jawtrack::track::score_records(&reopened, &tracks, &summary.records)? {
+        super::report::score(&r);
     }
 
     println!("\n== 5. learn a jaw rig from the tracked poses (frames with status ok)");
@@ -94,9 +93,9 @@ pub fn run(a: Args) -> anyhow::Result<()> {
     // The error is measured on the mandible when the capture has one.
     let metric =
         jawtrack::anatomy::MeshMetric::new(reopened.mandible.as_ref().unwrap_or(&reopened.lower));
-    let rig = super::rig::learn_rig(&poses, &metric, &Default::default())?;
+    let rig = jawtrack::rig::JawRig::learn(&poses.poses, &metric, &Default::default())?;
     rig.save(&rig_path)?;
-    let report = super::rig::evaluate_rig(&rig, &poses.poses, &metric, 0, 0, false)?;
+    let report = jawtrack::rig::eval::report(&rig, &poses.poses, &metric, 0, 0, false)?;
     let rec = &report.reconstruction;
     println!(
         "{} poses, learned in {:.2} s; reconstruction error on the mandible (largest vertex distance, mm): rig mean {:.3}, max {:.3}; PCA-3 mean {:.3}; NLPCA-5 mean {:.3}",

@@ -2,8 +2,10 @@ use std::path::PathBuf;
 use std::time::Instant;
 
 use anyhow::{Context, anyhow};
-use jawtrack::capture::{Arch, ArchPoses, Capture, OpenOptions, read_pose_file};
-use jawtrack::energy::{Backend, DEFAULT_LAMBDA, Energy, Region, Scene, open_engine};
+use jawtrack::capture::{Arch, ArchPoses, Capture, read_pose_file};
+use jawtrack::energy::{DEFAULT_LAMBDA, Energy, Region, Scene, open_engine};
+
+use super::args::{EngineArgs, LoadArgs};
 
 #[derive(clap::Args)]
 pub struct Args {
@@ -26,61 +28,6 @@ pub struct Args {
     pub load: LoadArgs,
     #[command(flatten)]
     pub engine: EngineArgs,
-}
-
-/// How a capture is loaded: the arches' simplification and the masks' resolution (shared by
-/// the commands that evaluate energies).
-#[derive(clap::Args, Clone, Copy)]
-pub struct LoadArgs {
-    /// Simplify each arch to at most this many triangles at load (instead of --simplify-mm).
-    #[arg(long)]
-    pub max_triangles: Option<usize>,
-    /// Simplify each arch as far as its surface stays within this distance (mm) of the
-    /// scan's; 0 keeps every triangle (a silhouette needs far fewer than a scan has).
-    #[arg(long, default_value_t = jawtrack::capture::DEFAULT_SIMPLIFY_MM)]
-    pub simplify_mm: f64,
-    /// Read the masks at 1/K of their resolution (each K x K block's most common label; K
-    /// must divide the masks' sides): for masks larger than the time per frame allows, e.g.
-    /// 4K video's. Drawing and counting cost about K² times less (setting up each triangle
-    /// costs the same), and the pixels are K times coarser.
-    #[arg(long, default_value_t = 1, value_name = "K", value_parser = clap::value_parser!(u32).range(1..=16))]
-    pub mask_reduce: u32,
-}
-
-impl LoadArgs {
-    pub fn open_options(&self) -> OpenOptions {
-        OpenOptions {
-            max_triangles: self.max_triangles,
-            simplify_mm: self.simplify_mm,
-            mask_reduce: self.mask_reduce,
-        }
-    }
-}
-
-impl Default for LoadArgs {
-    fn default() -> Self {
-        let o = OpenOptions::default();
-        LoadArgs {
-            max_triangles: o.max_triangles,
-            simplify_mm: o.simplify_mm,
-            mask_reduce: o.mask_reduce,
-        }
-    }
-}
-
-/// How energies are evaluated (shared by every command that evaluates them).
-#[derive(clap::Args, Clone, Copy)]
-pub struct EngineArgs {
-    /// Energy backend: `auto` takes a hardware GPU adapter when there is one and the CPU
-    /// reference otherwise; `JAWTRACK_ADAPTER=substring` picks an adapter by name.
-    #[arg(long, value_enum, default_value_t = Backend::Auto)]
-    pub backend: Backend,
-    /// What to render and count: only where the arch can be (`footprint`), every pixel
-    /// (`full-frame`), or only what can change the energy (`energy`: the CPU reference skips
-    /// body faces off the mask; the other counts are then low). Default: `energy` where
-    /// only the energy is read (track, bench track), `footprint` for the energy command.
-    #[arg(long, value_enum)]
-    pub region: Option<Region>,
 }
 
 pub fn run(a: Args) -> anyhow::Result<()> {
@@ -114,9 +61,9 @@ pub fn run(a: Args) -> anyhow::Result<()> {
         lower: pick(&a.lower, Arch::Lower)?,
     };
     let opened = open_engine(
-        a.engine.backend,
+        a.engine.backend.into(),
         Scene::from_capture(&capture),
-        a.engine.region.unwrap_or(Region::Footprint),
+        a.engine.region.map_or(Region::Footprint, Into::into),
     )?;
     eprintln!("backend: {}", opened.choice);
     let mut engine = opened.engine;

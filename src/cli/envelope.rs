@@ -2,9 +2,11 @@
 
 use std::path::PathBuf;
 
-use anyhow::{Context, bail};
-use jawtrack::envelope::adapt::{Adaptation, EXTREMES};
-use jawtrack::envelope::{EnvelopeRig, JawFrame, model::bijectivity};
+use anyhow::bail;
+use jawtrack::envelope::adapt::EXTREMES;
+
+use super::args::{AdaptationArg, Landmarks};
+use jawtrack::envelope::{EnvelopeRig, model::bijectivity};
 use jawtrack::geometry::Pose;
 use jawtrack::rig::eval::Series;
 use nalgebra::Vector3;
@@ -38,8 +40,8 @@ pub struct AdaptArgs {
     #[arg(long)]
     pub mesh: PathBuf,
     /// Reduced (only the reference points of the poses) or full (the whole poses).
-    #[arg(long, value_enum, default_value_t = Adaptation::Full)]
-    pub mode: Adaptation,
+    #[arg(long, value_enum, default_value_t = AdaptationArg::Full)]
+    pub mode: AdaptationArg,
     #[arg(short, long)]
     pub out: PathBuf,
 }
@@ -64,10 +66,10 @@ pub struct LearnArgs {
 pub struct PoseArgs {
     pub envelope: PathBuf,
     /// Where the reference point should go, upper frame (mm): X,Y,Z.
-    #[arg(long, value_parser = super::rig::parse_vec3, conflicts_with = "cube", required_unless_present = "cube")]
+    #[arg(long, value_parser = super::args::parse_vec3, conflicts_with = "cube", required_unless_present = "cube")]
     pub point: Option<[f64; 3]>,
     /// Unit-cube sliders: SX (left→right), SY (top→bottom), SZ (back→front), each in [0, 1].
-    #[arg(long, value_parser = super::rig::parse_vec3)]
+    #[arg(long, value_parser = super::args::parse_vec3)]
     pub cube: Option<[f64; 3]>,
 }
 
@@ -102,40 +104,9 @@ pub fn run(c: Command) -> anyhow::Result<()> {
     }
 }
 
-/// The jaw frame's landmarks on the mandible, given or found.
-#[derive(clap::Args, Default)]
-pub struct Landmarks {
-    /// Vertex indices of the left and right condyles: L,R (default: found on the mesh).
-    #[arg(long, value_delimiter = ',')]
-    pub condyles: Option<Vec<usize>>,
-    /// Vertex index of the reference point, the lower incisal midpoint (default: found).
-    #[arg(long)]
-    pub reference: Option<usize>,
-}
-
-impl Landmarks {
-    /// The jaw frame of a mandible mesh.
-    pub(crate) fn frame(
-        &self,
-        mesh_path: &std::path::Path,
-        mesh: &jawtrack::capture::Mesh,
-    ) -> anyhow::Result<JawFrame> {
-        let condyles = match self.condyles.as_deref() {
-            None => None,
-            Some(&[l, r]) => Some([l, r]),
-            Some(other) => anyhow::bail!(
-                "--condyles: expected two vertex indices L,R, found {}",
-                other.len()
-            ),
-        };
-        JawFrame::from_mesh(mesh, condyles, self.reference)
-            .with_context(|| format!("{}: the jaw frame's landmarks", mesh_path.display()))
-    }
-}
-
 fn learn(a: LearnArgs) -> anyhow::Result<()> {
     let poses = jawtrack::rig::read_jaw_poses(&a.input)?;
-    let (mesh, metric) = super::rig::load_mesh(&a.mesh)?;
+    let (mesh, metric) = super::args::load_mesh(&a.mesh)?;
     let frame = a.landmarks.frame(&a.mesh, &mesh)?;
     let rig = EnvelopeRig::learn(&poses.poses, &frame, &metric)?;
     rig.save(&a.out)?;
@@ -235,7 +206,7 @@ struct EvalReport {
 fn evaluate(a: EvalArgs) -> anyhow::Result<()> {
     let rig = EnvelopeRig::load(&a.envelope)?;
     let poses = jawtrack::rig::read_jaw_poses(&a.input)?;
-    let (_, metric) = super::rig::load_mesh(&a.mesh)?;
+    let (_, metric) = super::args::load_mesh(&a.mesh)?;
     let weights = jawtrack::envelope::compare::front_weights(&metric, &rig.six.frame);
     let rebuilt: Vec<Pose> = poses.poses.iter().map(|p| rig.reconstruct(p)).collect();
     let report = EvalReport {
@@ -301,9 +272,9 @@ fn adapt(a: AdaptArgs) -> anyhow::Result<()> {
             poses.len()
         )
     })?;
-    let (mesh, metric) = super::rig::load_mesh(&a.mesh)?;
+    let (mesh, metric) = super::args::load_mesh(&a.mesh)?;
     let frame = Landmarks::default().frame(&a.mesh, &mesh)?;
-    let rig = jawtrack::envelope::adapt::adapt(&source, &measured, &frame, &metric, a.mode)?;
+    let rig = jawtrack::envelope::adapt::adapt(&source, &measured, &frame, &metric, a.mode.into())?;
     rig.save(&a.out)?;
     println!(
         "adapted {} to the new subject ({:?}, five poses: {}) in {:.2} s: {}",

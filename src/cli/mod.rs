@@ -1,12 +1,15 @@
-//! clap commands: the only place that prints or uses anyhow.
+//! clap commands, one file each (`args`: what they share; `report`: what they print;
+//! `run`: their long steps with progress): the only place that prints or uses anyhow or clap.
 
+mod args;
 mod bench;
-mod bench_rig;
 mod demo;
 mod energy;
 mod envelope;
 mod mesh;
+mod report;
 mod rig;
+mod run;
 mod score;
 mod synth;
 mod track;
@@ -85,18 +88,4 @@ pub(crate) fn progress_bar(len: u64, what: &str) -> indicatif::ProgressBar {
     );
     bar.set_message(what.to_string());
     bar
-}
-
-/// A `--settings` argument: a JSON file, or the JSON itself when the argument starts with `{`
-/// (errors then name `--settings` where they would name the file).
-fn read_settings<T: serde::de::DeserializeOwned>(
-    arg: &std::path::Path,
-    what: &str,
-) -> jawtrack::error::Result<T> {
-    match arg.to_str().map(str::trim_start) {
-        Some(text) if text.starts_with('{') => {
-            jawtrack::capture::json::parse_json(text, std::path::Path::new("--settings"))
-        }
-        _ => jawtrack::capture::json::read_json(arg, what),
-    }
 }

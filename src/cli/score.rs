@@ -19,12 +19,12 @@ pub fn run(a: Args) -> anyhow::Result<()> {
     let capture = Capture::open(&a.capture)
         .with_context(|| format!("invalid capture {}", a.capture.display()))?;
     let tracks: TracksJson = jawtrack::capture::json::read_json(&a.tracks, "tracks file")?;
-    let report = super::track::score_records(&capture, &a.tracks, &tracks.frames)?
+    let report = jawtrack::track::score_records(&capture, &a.tracks, &tracks.frames)?
         .ok_or_else(|| anyhow!("{}: no gt/poses.json to score against", a.capture.display()))?;
     if a.json {
         println!("{}", serde_json::to_string_pretty(&report)?);
     } else {
-        super::track::print_score(&report);
+        super::report::score(&report);
     }
     Ok(())
 }

@@ -5,7 +5,7 @@ use super::gpu::{GpuEnergy, GpuError};
 use super::{CpuEnergy, EnergyEngine, Region, Scene};
 use crate::error::Result;
 
-#[derive(Debug, Clone, Copy, Default, PartialEq, Eq, clap::ValueEnum)]
+#[derive(Debug, Clone, Copy, Default, PartialEq, Eq)]
 pub enum Backend {
     /// A hardware GPU adapter when there is one; the CPU reference otherwise, and also when the
     /// only adapter is a software rasteriser (slower than the CPU reference: see README).

@@ -1,4 +1,4 @@
-//! Back faces of closed meshes, which the CPU reference can leave out ([`Region::Energy`]).
+//! Back faces of closed meshes, which the CPU reference can leave out ([`Region::Relevant`]).
 //!
 //! A closed, consistently oriented mesh (every edge shared by exactly two faces that run it in
 //! opposite directions) seen from outside covers each pixel centre with as many faces facing
@@ -12,7 +12,7 @@
 //! a silhouette can differ. Open meshes (most raw scans) and meshes crossing the near plane are
 //! drawn whole.
 //!
-//! [`Region::Energy`]: super::Region::Energy
+//! [`Region::Relevant`]: super::Region::Relevant
 
 use std::collections::HashMap;
 

@@ -25,7 +25,7 @@ struct PreparedMask {
     mask: LabelMask,
     /// Per scored arch (upper, lower): see `mask_totals`.
     totals: [[u64; 2]; 2],
-    /// Where either arch's label is (for [`Region::Energy`]).
+    /// Where either arch's label is (for [`Region::Relevant`]).
     tiles: LabelledTiles,
 }
 
@@ -151,7 +151,7 @@ impl CpuEnergy {
         SCRATCH.with(|s| {
             let s = &mut *s.borrow_mut();
             let a = (arch == Arch::Lower) as usize;
-            let skip = (self.region == Region::Energy).then(|| Skip {
+            let skip = (self.region == Region::Relevant).then(|| Skip {
                 tiles: &prep.tiles,
                 boi_vertices: &self.boi_vertices[a],
                 clusters: &self.clusters[a],
@@ -180,7 +180,7 @@ fn boi_vertices(mesh: &Mesh) -> Vec<u32> {
     v
 }
 
-/// What [`Region::Energy`] needs to skip body faces (see `super::relevance`).
+/// What [`Region::Relevant`] needs to skip body faces (see `super::relevance`).
 struct Skip<'a> {
     tiles: &'a LabelledTiles,
     boi_vertices: &'a [u32],
@@ -212,7 +212,7 @@ fn render(
         _ if scene.other_arch_class() != raster::CLASS_NONE => {
             s.scored.footprint(cam).union(&other_rect)
         }
-        Region::Footprint | Region::Energy => s.scored.footprint(cam),
+        Region::Footprint | Region::Relevant => s.scored.footprint(cam),
     };
     s.target.reset(rect);
     s.target.copy_from(other);
@@ -307,9 +307,9 @@ fn count_row(mask: &[u8], class: &[u8], own: u8, other: u8) -> [u32; 9] {
 impl EnergyEngine for CpuEnergy {
     fn name(&self) -> String {
         format!(
-            "cpu reference ({} threads), {:?}",
+            "cpu reference ({} threads), {}",
             rayon::current_num_threads(),
-            self.region
+            self.region.name()
         )
     }
 

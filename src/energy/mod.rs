@@ -25,21 +25,32 @@ pub const DEFAULT_LAMBDA: f64 = 0.4;
 
 /// Which part of each mask an evaluation renders and counts. `Footprint` and `FullFrame` give
 /// the same counts: outside the model's footprint every pixel is class none, so those bins
-/// follow from the mask's totals. `Energy` gives the same energy, cross and area error.
-#[derive(Debug, Clone, Copy, Default, PartialEq, Eq, clap::ValueEnum)]
+/// follow from the mask's totals. `Relevant` gives the same energy, cross and area error.
+#[derive(Debug, Clone, Copy, Default, PartialEq, Eq)]
 pub enum Region {
     /// Only the pixels the arch (and, in combined mode, the other arch) can cover.
     #[default]
     Footprint,
     /// Every pixel of the mask (for comparison).
     FullFrame,
-    /// The footprint, drawing only what can change the energy (the CPU reference; the GPU
-    /// engine draws the footprint): body faces off the labelled pixels and away from the
+    /// The footprint, drawing only the faces relevant to the energy (the CPU reference; the
+    /// GPU engine draws the footprint): body faces off the labelled pixels and away from the
     /// boundary of interest are skipped (`relevance`, by cluster then by face: `clusters`),
     /// and so are the faces of closed meshes turned away from the camera (`backfaces`). The
     /// bins of body pixels off the mask come out low; uncovered, BOI outside, cross and area
     /// error are those of `Footprint`.
-    Energy,
+    Relevant,
+}
+
+impl Region {
+    /// The name the command line and logs use.
+    pub fn name(self) -> &'static str {
+        match self {
+            Region::Footprint => "footprint",
+            Region::FullFrame => "full frame",
+            Region::Relevant => "relevant faces",
+        }
+    }
 }
 
 /// Mask states of a pixel for the scored arch.

@@ -1,4 +1,4 @@
-//! Which of the scored arch's body faces can change what the energy reads ([`Region::Energy`]).
+//! Which of the scored arch's body faces can change what the energy reads ([`Region::Relevant`]).
 //!
 //! E reads, per pixel, whether an arch-labelled pixel is covered (uncovered), whether a pixel
 //! off the arch's label shows the boundary of interest (BOI outside) and whether the other
@@ -8,7 +8,7 @@
 //! pixel bounds hold no labelled pixel and miss the rectangle the BOI can cover: the energy,
 //! cross and area error stay exact; only the count of body pixels off the mask drops.
 //!
-//! [`Region::Energy`]: super::Region::Energy
+//! [`Region::Relevant`]: super::Region::Relevant
 
 use super::raster::{Bounds, Rect};
 use crate::capture::LabelMask;

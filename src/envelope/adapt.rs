@@ -33,7 +33,7 @@ use crate::geometry::{Pose, so3_exp, so3_log};
 /// The measured poses' order.
 pub const EXTREMES: [&str; 5] = ["open", "left", "right", "front", "back"];
 
-#[derive(Debug, Clone, Copy, PartialEq, Eq, Serialize, Deserialize, clap::ValueEnum)]
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Serialize, Deserialize)]
 pub enum Adaptation {
     /// Only the reference point of each measured pose is used.
     Reduced,

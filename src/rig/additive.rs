@@ -117,6 +117,17 @@ impl Default for AdditiveSettings {
     }
 }
 
+impl AdditiveSettings {
+    /// Every field in its range (see [`crate::settings`]).
+    pub fn validate(&self, rules: &crate::settings::Rules) -> crate::error::Result<()> {
+        rules.count("hidden", self.hidden as u64, 1, 1024)?;
+        rules.count("max_iterations", self.max_iterations, 0, 10_000_000)?;
+        rules.count("memory", self.memory as u64, 1, 1000)?;
+        rules.number("weight_decay", self.weight_decay, 0.0, 1e3)?;
+        Ok(())
+    }
+}
+
 #[derive(Debug, Clone, Serialize, Deserialize)]
 pub struct AdditiveReport {
     pub iterations: u64,

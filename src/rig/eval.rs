@@ -2,6 +2,8 @@
 //! with 1..6 components and for the three-parameter rig; the distance from random rig poses
 //! to the nearest captured pose, with and without the d1-dependent ranges (Fig. 13).
 
+use std::time::Instant;
+
 use nalgebra::Vector6;
 use rand::SeedableRng;
 use rand_chacha::ChaCha8Rng;
@@ -9,7 +11,7 @@ use rayon::prelude::*;
 use serde::Serialize;
 
 use super::model::JawRig;
-use super::nlpca::Nlpca;
+use super::nlpca::{Nlpca, NlpcaError};
 use crate::anatomy::Coordinates;
 use crate::anatomy::MeshMetric;
 use crate::anatomy::Pca;
@@ -166,4 +168,64 @@ pub fn sampled(
         dynamic_ranges: Series::new("with d1-dependent ranges", nearest(&dynamic)),
         static_ranges: Series::new("with fixed ranges", nearest(&fixed)),
     }
+}
+#[derive(Serialize)]
+pub struct EvalReport {
+    pub poses: usize,
+    pub mesh_vertices: usize,
+    pub singular_values_mm: Vec<f64>,
+    pub reconstruction: Reconstruction,
+    pub sampled: Option<Sampled>,
+    /// Time to encode one pose (extraction + Gauss-Newton), ms.
+    pub encode_ms: f64,
+    /// Time to decode one parameter vector into a pose, µs.
+    pub decode_us: f64,
+    pub seconds: f64,
+}
+
+/// The figures for `rig` on `poses` (`rig eval`, the demo and `bench rig`): reconstruction
+/// errors, optionally random rig poses (`samples`) and a six-component NLPCA, and timings.
+pub fn report(
+    rig: &JawRig,
+    poses: &[Pose],
+    metric: &MeshMetric,
+    samples: usize,
+    seed: u64,
+    nlpca6: bool,
+) -> Result<EvalReport, NlpcaError> {
+    let started = Instant::now();
+    let six = if nlpca6 {
+        let samples: Vec<Vec<f64>> = poses
+            .iter()
+            .map(|p| rig.coords.vector(p).as_slice().to_vec())
+            .collect();
+        Some(Nlpca::train(&samples, 6, &rig.settings.network)?.0)
+    } else {
+        None
+    };
+    let reconstruction = reconstruction(rig, poses, metric, six.as_ref());
+    let sampled = (samples > 0).then(|| sampled(rig, poses, metric, samples, seed));
+    let t = Instant::now();
+    let reps = poses.len().min(200);
+    let mut sink = 0.0;
+    for p in &poses[..reps] {
+        sink += rig.encode(p)[0];
+    }
+    let encode_ms = t.elapsed().as_secs_f64() * 1e3 / reps.max(1) as f64;
+    let t = Instant::now();
+    for k in 0..1000 {
+        sink += rig.pose(&[k as f64 * 1e-4, 0.0, 0.0]).translation.x;
+    }
+    let decode_us = t.elapsed().as_secs_f64() * 1e3;
+    std::hint::black_box(sink);
+    Ok(EvalReport {
+        poses: poses.len(),
+        mesh_vertices: metric.vertex_count(),
+        singular_values_mm: rig.pca.singular_values.clone(),
+        reconstruction,
+        sampled,
+        encode_ms,
+        decode_us,
+        seconds: started.elapsed().as_secs_f64(),
+    })
 }

@@ -6,7 +6,7 @@ use std::path::Path;
 
 use serde::{Deserialize, Serialize};
 
-use crate::capture::json::{FrameRecordJson, PoseJson, TRACKS_FORMAT, read_json};
+use crate::capture::json::{FrameRecordJson, PoseJson, Status, TRACKS_FORMAT, read_json};
 use crate::capture::write_json_atomic;
 use crate::error::{Error, Result};
 use crate::geometry::{Pose, jaw_pose};
@@ -91,7 +91,7 @@ pub fn read_jaw_poses(path: &Path) -> Result<JawPoses> {
                 )
             })?;
             for (i, f) in frames.iter().enumerate() {
-                if f.status.as_deref().is_some_and(|s| s != "ok") {
+                if f.status() != Status::Ok {
                     out.skipped += 1;
                     continue;
                 }

@@ -33,6 +33,7 @@ use crate::capture::write_json_atomic;
 use crate::error::{Error, Result};
 use crate::geometry::Pose;
 use crate::geometry::least_squares::levenberg_marquardt;
+use crate::settings::Rules;
 
 pub const RIG_FORMAT: &str = "jawtrack-rig/1";
 
@@ -72,6 +73,19 @@ impl Default for RigSettings {
             alpha: 0.12,
             encode_steps: 8,
         }
+    }
+}
+
+impl RigSettings {
+    /// Every field in its range (see [`crate::settings`]), errors naming `source`.
+    pub fn validate(&self, source: &std::path::Path) -> crate::error::Result<()> {
+        let rules = Rules::new(source);
+        self.network.validate(&rules.within("network"))?;
+        self.mode.validate(&rules.within("mode"))?;
+        self.modes.validate(&rules.within("modes"))?;
+        rules.above("alpha", self.alpha, 0.0, 100.0)?;
+        rules.count("encode_steps", self.encode_steps as u64, 0, 1000)?;
+        Ok(())
     }
 }
 

@@ -44,6 +44,18 @@ impl Default for NlpcaSettings {
     }
 }
 
+impl NlpcaSettings {
+    /// Every field in its range (see [`crate::settings`]).
+    pub fn validate(&self, rules: &crate::settings::Rules) -> crate::error::Result<()> {
+        rules.count("hidden", self.hidden as u64, 1, 1024)?;
+        rules.number("weight_decay", self.weight_decay, 0.0, 1e3)?;
+        rules.count("max_iterations", self.max_iterations, 0, 10_000_000)?;
+        rules.count("memory", self.memory as u64, 1, 1000)?;
+        rules.above("input_std", self.input_std, 0.0, 100.0)?;
+        Ok(())
+    }
+}
+
 /// A trained network. Inputs and outputs are in the caller's units; the scaling is inside.
 #[derive(Debug, Clone, Serialize, Deserialize, PartialEq)]
 pub struct Nlpca {

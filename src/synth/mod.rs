@@ -45,7 +45,7 @@ const COMBINED_TEETH: u8 = 255;
 /// the arches are, by about 2.5.
 pub const BARREL_LENS: [f64; 5] = [-0.25, 0.08, 0.001, -0.0005, 0.0];
 
-#[derive(Debug, Clone, Copy, PartialEq, Eq, clap::ValueEnum)]
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
 pub enum Preset {
     /// Perfect masks of the whole crowns.
     Clean,
@@ -57,7 +57,7 @@ pub enum Preset {
 }
 
 /// Which temporomandibular joint the subject has.
-#[derive(Debug, Clone, Copy, Default, PartialEq, Eq, clap::ValueEnum)]
+#[derive(Debug, Clone, Copy, Default, PartialEq, Eq)]
 pub enum Joint {
     /// An average adult joint.
     #[default]
@@ -66,7 +66,7 @@ pub enum Joint {
     Variant,
 }
 
-#[derive(Debug, Clone, Copy, PartialEq, Eq, clap::ValueEnum)]
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
 pub enum MaskKind {
     PerArch,
     Combined,

@@ -13,6 +13,8 @@ pub mod prior;
 pub mod score;
 pub mod search;
 pub mod sequence;
+pub mod session;
 
 pub use search::{Found, SearchSettings, search};
 pub use sequence::{FrameResult, Status, TrackSettings, TrackState, track_frames};
+pub use session::{Session, SessionOptions, Summary, score_records};

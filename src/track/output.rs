@@ -41,7 +41,7 @@ pub fn record(r: &FrameResult) -> FrameRecordJson {
             .energies
             .as_ref()
             .map(|[u, l]| json!({"upper": u.area_error(), "lower": l.area_error()})),
-        status: Some(r.status.as_str().to_string()),
+        status: Some(r.status),
     }
 }
 
@@ -163,11 +163,7 @@ fn read_journal(path: &Path) -> Result<Vec<FrameRecordJson>> {
 
 /// Poses and status of a written record.
 pub fn record_poses(path: &Path, r: &FrameRecordJson) -> Result<(ArchPoses, Status)> {
-    let status = match r.status.as_deref() {
-        Some("low-confidence") => Status::LowConfidence,
-        Some("no-data") => Status::NoData,
-        _ => Status::Ok,
-    };
+    let status = r.status();
     Ok((
         ArchPoses {
             upper: r.upper.to_pose(path, &format!("frame {}.upper", r.frame))?,

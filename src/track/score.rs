@@ -2,7 +2,7 @@
 //! upper), the mean vertex distance (mm), rotation error (deg) and translation error (mm), and
 //! the paper's area error; median, 95th percentile and maximum over frames.
 
-use crate::capture::json::FrameRecordJson;
+use crate::capture::json::{FrameRecordJson, Status};
 use crate::capture::{Arch, ArchPoses, Capture, Mesh};
 use crate::geometry::Pose;
 
@@ -65,10 +65,10 @@ pub fn score(capture: &Capture, tracked: &[(FrameRecordJson, ArchPoses)]) -> Opt
         let Some(gt) = capture.gt_poses(rec.frame) else {
             continue;
         };
-        match rec.status.as_deref() {
-            Some("low-confidence") => low += 1,
-            Some("no-data") => none += 1,
-            _ => ok += 1,
+        match rec.status() {
+            Status::LowConfidence => low += 1,
+            Status::NoData => none += 1,
+            Status::Ok => ok += 1,
         }
         let mut frame_err = [0.0; 3];
         let pairs = [

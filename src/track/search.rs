@@ -15,6 +15,7 @@ use crate::capture::{Arch, ArchPoses};
 use crate::energy::{Energy, EnergyEngine};
 use crate::error::Result;
 use crate::geometry::Pose;
+use crate::settings::Rules;
 
 /// The search's settings; the defaults suit three cameras at ~20 cm with half-resolution masks
 /// (a pixel is ~0.4 mm there).
@@ -69,6 +70,32 @@ impl Default for SearchSettings {
             lambda: crate::energy::DEFAULT_LAMBDA,
             cross_weight: 1.0,
         }
+    }
+}
+
+impl SearchSettings {
+    /// Every field in its range (see [`crate::settings`]).
+    pub fn validate(&self, rules: &Rules) -> Result<()> {
+        // Steps and widths must be positive: a zero step never ends a line search and a zero
+        // sampling box is an empty range.
+        rules.above("fd_step_rad", self.fd_step_rad, 0.0, 0.2)?;
+        rules.above("fd_step_mm", self.fd_step_mm, 0.0, 10.0)?;
+        rules.above("line_max_rad", self.line_max_rad, 0.0, 1.0)?;
+        rules.above("line_max_mm", self.line_max_mm, 0.0, 50.0)?;
+        rules.number("line_tolerance", self.line_tolerance, 1e-6, 0.5)?;
+        rules.count("max_rounds", self.max_rounds as u64, 0, 1000)?;
+        rules.number("min_gain", self.min_gain, 0.0, 1e9)?;
+        rules.count("sample_rounds", self.sample_rounds as u64, 0, 100)?;
+        rules.count("samples", self.samples as u64, 1, 4096)?;
+        rules.above("sample_rad", self.sample_rad, 0.0, 1.0)?;
+        rules.above("sample_mm", self.sample_mm, 0.0, 50.0)?;
+        rules.length("scales", self.scales.len(), 1, 16)?;
+        for (k, &scale) in self.scales.iter().enumerate() {
+            rules.above(&format!("scales[{k}]"), scale, 0.0, 100.0)?;
+        }
+        rules.number("lambda", self.lambda, 0.0, 1000.0)?;
+        rules.number("cross_weight", self.cross_weight, 0.0, 1000.0)?;
+        Ok(())
     }
 }
 

@@ -14,10 +14,12 @@ use super::manifold::JawManifold;
 use super::penalties::Penalties;
 use super::prior::JawPrior;
 use super::search::{RADIUS_MM, SearchSettings, search};
+pub use crate::capture::json::Status;
 use crate::capture::{Arch, ArchPoses, Capture, FrameMasks, MaskMode};
 use crate::energy::{Energy, EnergyEngine};
 use crate::error::Result;
 use crate::geometry::Pose;
+use crate::settings::Rules;
 
 #[derive(Debug, Clone, serde::Serialize, serde::Deserialize)]
 #[serde(default, deny_unknown_fields)]
@@ -91,20 +93,63 @@ impl Default for TrackSettings {
     }
 }
 
-#[derive(Debug, Clone, Copy, PartialEq, Eq)]
-pub enum Status {
-    Ok,
-    LowConfidence,
-    NoData,
-}
+impl TrackSettings {
+    /// Every field in its range (see [`crate::settings`]); errors name `settings` as the
+    /// source. Use [`TrackSettings::validate_from`] to name a file.
+    pub fn validate(&self) -> Result<()> {
+        self.validate_from(std::path::Path::new("settings"))
+    }
 
-impl Status {
-    pub fn as_str(self) -> &'static str {
-        match self {
-            Status::Ok => "ok",
-            Status::LowConfidence => "low-confidence",
-            Status::NoData => "no-data",
-        }
+    pub fn validate_from(&self, source: &std::path::Path) -> Result<()> {
+        let rules = Rules::new(source);
+        self.search.validate(&rules.within("search"))?;
+        // A search's seed packs the pass in 4 bits and the restart in 7 (see `track_frame`).
+        rules.count("per_arch_passes", self.per_arch_passes as u64, 1, 16)?;
+        rules.count("combined_passes", self.combined_passes as u64, 1, 16)?;
+        rules.number("settle_mm", self.settle_mm, 0.0, 100.0)?;
+        rules.number(
+            "low_confidence_area_error",
+            self.low_confidence_area_error,
+            0.0,
+            1.0,
+        )?;
+        rules.number("low_confidence_floor", self.low_confidence_floor, 0.0, 1.0)?;
+        rules.number("low_confidence_ratio", self.low_confidence_ratio, 0.0, 1e6)?;
+        rules.count(
+            "confidence_window",
+            self.confidence_window as u64,
+            1,
+            10_000,
+        )?;
+        rules.grid("jaw_prior_grid", &self.jaw_prior_grid, 100, 10_000)?;
+        rules.grid(
+            "jaw_prior_fine_grid",
+            &self.jaw_prior_fine_grid,
+            200,
+            100_000,
+        )?;
+        rules.count(
+            "jaw_prior_nearest",
+            self.jaw_prior_nearest as u64,
+            0,
+            10_000,
+        )?;
+        rules.count("restarts", self.restarts as u64, 1, 100)?;
+        rules.number("contact_weight", self.contact_weight, 0.0, 1e6)?;
+        rules.number(
+            "contact_tolerance_mm",
+            self.contact_tolerance_mm,
+            0.0,
+            100.0,
+        )?;
+        rules.number("jaw_manifold_weight", self.jaw_manifold_weight, 0.0, 1e6)?;
+        rules.number(
+            "jaw_manifold_tolerance_mm",
+            self.jaw_manifold_tolerance_mm,
+            0.0,
+            100.0,
+        )?;
+        Ok(())
     }
 }
 

@@ -120,7 +120,7 @@ pub fn energy_region_matches_footprint(capture: &jawtrack::capture::Capture, off
 
     let scene = Scene::from_capture(capture);
     let mut footprint = CpuEnergy::with_region(scene.clone(), Region::Footprint);
-    let mut energy = CpuEnergy::with_region(scene, Region::Energy);
+    let mut energy = CpuEnergy::with_region(scene, Region::Relevant);
     let mut rng = rand_chacha::ChaCha8Rng::seed_from_u64(11);
     let (mut compared, mut views, mut skipped) = (0, 0, 0);
     for f in capture.frames() {

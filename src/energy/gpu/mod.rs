@@ -1121,7 +1121,7 @@ fn colour_bin(rgba: &[u8]) -> usize {
 
 impl EnergyEngine for GpuEnergy {
     fn name(&self) -> String {
-        format!("gpu {}, {:?}", self.ctx.describe(), self.region)
+        format!("gpu {}, {}", self.ctx.describe(), self.region.name())
     }
 
     fn set_frame(&mut self, masks: &FrameMasks) -> Result<()> {

@@ -43,7 +43,7 @@ struct RigBench {
     learn_seconds: f64,
     ik_ms_per_query: f64,
     ik_mean_residual_mm: f64,
-    eval: super::rig::EvalReport,
+    eval: jawtrack::rig::eval::EvalReport,
     /// Every rig on the same poses (`rig compare`).
     compare: Vec<jawtrack::envelope::compare::Row>,
     /// The envelope rig adapted to a second subject (another joint) from five of its poses,
@@ -69,7 +69,7 @@ pub fn rig(a: RigArgs) -> anyhow::Result<()> {
         ..Default::default()
     };
     generate(&capture, &opts, &|| {}).context("synthesising the motion")?;
-    let (_, metric) = super::rig::load_mesh(&capture.join("meshes/mandible.obj"))?;
+    let (_, metric) = crate::cli::args::load_mesh(&capture.join("meshes/mandible.obj"))?;
 
     let t = Instant::now();
     let poses = read_jaw_poses(&capture.join("gt/poses.json"))?;
@@ -84,11 +84,11 @@ pub fn rig(a: RigArgs) -> anyhow::Result<()> {
     settings.modes.seed = a.seed;
     let rig = JawRig::learn(&poses.poses, &metric, &settings)?;
     let (ik_ms, ik_residual) = time_ik(&rig, &metric, a.ik_queries, a.seed);
-    let eval = super::rig::evaluate_rig(&rig, &poses.poses, &metric, a.samples, a.seed, true)?;
+    let eval = jawtrack::rig::eval::report(&rig, &poses.poses, &metric, a.samples, a.seed, true)?;
     if let Some(p) = &a.plots {
         jawtrack::rig::plot::write_figures(p, &eval.reconstruction, eval.sampled.as_ref())?;
     }
-    let (mandible, _) = super::rig::load_mesh(&capture.join("meshes/mandible.obj"))?;
+    let (mandible, _) = crate::cli::args::load_mesh(&capture.join("meshes/mandible.obj"))?;
     let frame = jawtrack::envelope::JawFrame::from_mesh(&mandible, None, None)?;
     let compare = jawtrack::envelope::compare::compare(&poses.poses, &frame, &metric)?;
     let adaptation = adapt_to_variant(&poses.poses, &frame, &metric, &a, dir.path())?;
@@ -121,9 +121,9 @@ pub fn rig(a: RigArgs) -> anyhow::Result<()> {
         report.ik_mean_residual_mm,
         a.ik_queries
     );
-    super::rig::print_eval(&report.eval);
+    crate::cli::report::rig_eval(&report.eval);
     println!();
-    super::rig::print_compare(report.poses, metric.vertex_count(), &report.compare);
+    crate::cli::report::rig_compare(report.poses, metric.vertex_count(), &report.compare);
     println!();
     println!(
         "adaptation to a second subject (`synth --joint variant`, same teeth), from its five extremal poses; error over its whole motion ({} poses):",
@@ -190,7 +190,7 @@ fn adapt_to_variant(
         ..Default::default()
     };
     generate(&capture, &opts, &|| {}).context("synthesising the second subject")?;
-    let (mesh_b, metric_b) = super::rig::load_mesh(&capture.join("meshes/mandible.obj"))?;
+    let (mesh_b, metric_b) = crate::cli::args::load_mesh(&capture.join("meshes/mandible.obj"))?;
     let frame_b = JawFrame::from_mesh(&mesh_b, None, None)?;
     let poses_b = read_jaw_poses(&capture.join("gt/poses.json"))?.poses;
     let measured = extremal_poses(&poses_b, &frame_b);

@@ -1,0 +1,300 @@
+//! What several commands share: how a capture is loaded and energies are evaluated, the
+//! synthetic camera rig, settings, mesh landmarks, and the choices the library's enums offer
+//! on the command line (clap stays out of the library).
+
+use std::ops::Range;
+use std::path::{Path, PathBuf};
+
+use anyhow::{Context, bail};
+use jawtrack::anatomy::MeshMetric;
+use jawtrack::capture::{BoiSource, Capture, Mesh, OpenOptions};
+use jawtrack::envelope::JawFrame;
+
+/// A command-line mirror of a library enum: the variants' `///` lines are the help, and the
+/// two `From`s fail to compile when either side gains a variant the other lacks.
+macro_rules! choice {
+    ($(#[$meta:meta])* $name:ident => $lib:path { $($(#[doc = $doc:literal])* $variant:ident),+ $(,)? }) => {
+        $(#[$meta])*
+        #[derive(Clone, Copy, Debug, PartialEq, Eq, clap::ValueEnum)]
+        pub enum $name {
+            $($(#[doc = $doc])* $variant),+
+        }
+        impl From<$name> for $lib {
+            fn from(c: $name) -> $lib {
+                match c { $($name::$variant => <$lib>::$variant),+ }
+            }
+        }
+        impl From<$lib> for $name {
+            fn from(c: $lib) -> $name {
+                match c { $(<$lib>::$variant => $name::$variant),+ }
+            }
+        }
+    };
+}
+
+choice!(BackendArg => jawtrack::energy::Backend {
+    /// A hardware GPU adapter when there is one; the CPU reference otherwise, and also when
+    /// the only adapter is a software rasteriser (slower than the CPU reference).
+    Auto,
+    /// The GPU engine (any adapter, software ones included; `JAWTRACK_ADAPTER` picks one).
+    Gpu,
+    /// The CPU reference.
+    Cpu,
+    /// The paper's architecture on the GPU: colour image read back and counted on the CPU.
+    Readback,
+});
+
+choice!(RegionArg => jawtrack::energy::Region {
+    /// Only the pixels the arch (and, in combined mode, the other arch) can cover.
+    Footprint,
+    /// Every pixel of the mask (for comparison).
+    FullFrame,
+    /// The footprint, drawing only the faces that can change the energy (CPU reference).
+    Relevant,
+});
+
+choice!(PresetArg => jawtrack::synth::Preset {
+    /// Perfect masks of the whole crowns.
+    Clean,
+    /// Lips hide the gum side of the crowns; boundaries wander by a pixel or two; gums
+    /// between teeth filled; a few specular holes.
+    Realistic,
+    /// Faster motion, more noise, and frames where the lips close.
+    Hard,
+});
+
+choice!(JointArg => jawtrack::synth::Joint {
+    /// An average adult joint.
+    Average,
+    /// A second subject: condyles placed differently, a steeper eminence, less opening.
+    Variant,
+});
+
+choice!(MaskKindArg => jawtrack::synth::MaskKind {
+    /// One label per arch.
+    PerArch,
+    /// One teeth mask for both arches.
+    Combined,
+});
+
+choice!(AdaptationArg => jawtrack::envelope::adapt::Adaptation {
+    /// Only the reference point of each measured pose is used.
+    Reduced,
+    /// The whole measured poses.
+    Full,
+});
+
+/// How a capture is loaded: the arches' simplification and the masks' resolution (shared by
+/// the commands that evaluate energies).
+#[derive(clap::Args, Clone, Copy)]
+pub struct LoadArgs {
+    /// Simplify each arch to at most this many triangles at load (instead of --simplify-mm).
+    #[arg(long)]
+    pub max_triangles: Option<usize>,
+    /// Simplify each arch as far as its surface stays within this distance (mm) of the
+    /// scan's; 0 keeps every triangle (a silhouette needs far fewer than a scan has).
+    #[arg(long, default_value_t = jawtrack::capture::DEFAULT_SIMPLIFY_MM)]
+    pub simplify_mm: f64,
+    /// Read the masks at 1/K of their resolution (each K x K block's most common label; K
+    /// must divide the masks' sides): for masks larger than the time per frame allows, e.g.
+    /// 4K video's. Drawing and counting cost about K² times less (setting up each triangle
+    /// costs the same), and the pixels are K times coarser.
+    #[arg(long, default_value_t = 1, value_name = "K", value_parser = clap::value_parser!(u32).range(1..=16))]
+    pub mask_reduce: u32,
+}
+
+impl LoadArgs {
+    pub fn open_options(&self) -> OpenOptions {
+        OpenOptions {
+            max_triangles: self.max_triangles,
+            simplify_mm: self.simplify_mm,
+            mask_reduce: self.mask_reduce,
+        }
+    }
+}
+
+impl Default for LoadArgs {
+    fn default() -> Self {
+        let o = OpenOptions::default();
+        LoadArgs {
+            max_triangles: o.max_triangles,
+            simplify_mm: o.simplify_mm,
+            mask_reduce: o.mask_reduce,
+        }
+    }
+}
+
+/// How energies are evaluated (shared by every command that evaluates them).
+#[derive(clap::Args, Clone, Copy)]
+pub struct EngineArgs {
+    /// Energy backend: `auto` takes a hardware GPU adapter when there is one and the CPU
+    /// reference otherwise; `JAWTRACK_ADAPTER=substring` picks an adapter by name.
+    #[arg(long, value_enum, default_value_t = BackendArg::Auto)]
+    pub backend: BackendArg,
+    /// What to render and count: only where the arch can be (`footprint`), every pixel
+    /// (`full-frame`), or only the faces that can change the energy (`relevant`: the CPU
+    /// reference skips body faces off the mask; the other counts are then low). Default: `relevant` where
+    /// only the energy is read (track, bench track), `footprint` for the energy command.
+    #[arg(long, value_enum)]
+    pub region: Option<RegionArg>,
+}
+
+/// The cameras a synthetic capture is filmed with (`synth`, `bench track`).
+#[derive(clap::Args, Clone, Debug)]
+pub struct CameraRigArgs {
+    /// A folder of camera files (`<name>.json`, as in a capture's cameras/) to film with
+    /// instead of the rig of calib/ (three cameras); masks are written at half each camera's
+    /// resolution.
+    #[arg(long)]
+    pub rig: Option<PathBuf>,
+    /// Lens distortion for every camera, OpenCV's k1,k2,p1,p2[,k3] (e.g. -0.25,0.08,0,0, a
+    /// moderate barrel), replacing the camera files': written to the capture's camera files,
+    /// and the masks are drawn through it. Default: the cameras' own (calib/ has none).
+    #[arg(long, value_delimiter = ',', allow_hyphen_values = true)]
+    pub distortion: Option<Vec<f64>>,
+}
+
+impl CameraRigArgs {
+    pub fn distortion(&self) -> anyhow::Result<Option<[f64; 5]>> {
+        let Some(d) = &self.distortion else {
+            return Ok(None);
+        };
+        anyhow::ensure!(
+            (4..=5).contains(&d.len()) && d.iter().all(|x| x.is_finite()),
+            "--distortion: expected 4 or 5 finite numbers (k1,k2,p1,p2[,k3]), found {d:?}"
+        );
+        let mut k = [0.0; 5];
+        k[..d.len()].copy_from_slice(d);
+        Ok(Some(k))
+    }
+}
+
+/// A `--settings` argument: a JSON file, or the JSON itself when the argument starts with `{`
+/// (errors then name `--settings` where they would name the file).
+pub fn read_settings<T: serde::de::DeserializeOwned>(
+    arg: &std::path::Path,
+    what: &str,
+) -> jawtrack::error::Result<T> {
+    match arg.to_str().map(str::trim_start) {
+        Some(text) if text.starts_with('{') => {
+            jawtrack::capture::json::parse_json(text, std::path::Path::new("--settings"))
+        }
+        _ => jawtrack::capture::json::read_json(arg, what),
+    }
+}
+
+/// Tracking settings from `--settings` (defaults without it), checked field by field.
+pub fn track_settings(arg: Option<&Path>) -> anyhow::Result<jawtrack::track::TrackSettings> {
+    let Some(arg) = arg else {
+        return Ok(Default::default());
+    };
+    let settings: jawtrack::track::TrackSettings = read_settings(arg, "settings file")?;
+    settings.validate_from(settings_source(arg))?;
+    Ok(settings)
+}
+
+/// Rig settings from `--settings` (defaults without it), checked field by field.
+pub fn rig_settings(arg: Option<&Path>) -> anyhow::Result<jawtrack::rig::RigSettings> {
+    let Some(arg) = arg else {
+        return Ok(Default::default());
+    };
+    let settings: jawtrack::rig::RigSettings = read_settings(arg, "rig settings")?;
+    settings.validate(settings_source(arg))?;
+    Ok(settings)
+}
+
+/// What errors call a `--settings` argument: its file, or `--settings` for inline JSON.
+fn settings_source(arg: &Path) -> &Path {
+    match arg.to_str().map(str::trim_start) {
+        Some(text) if text.starts_with('{') => Path::new("--settings"),
+        _ => arg,
+    }
+}
+
+/// `--frames A..B` (B excluded) or `A..=B`, either end optional, within the capture's frames.
+pub fn parse_frames(s: &str, capture: &Capture) -> anyhow::Result<Range<u32>> {
+    let all = capture.frames();
+    let (a, b, inclusive) = if let Some((a, b)) = s.split_once("..=") {
+        (a, b, true)
+    } else if let Some((a, b)) = s.split_once("..") {
+        (a, b, false)
+    } else {
+        bail!("--frames {s:?}: expected A..B or A..=B");
+    };
+    let num = |x: &str, default: u32| -> anyhow::Result<u32> {
+        if x.is_empty() {
+            Ok(default)
+        } else {
+            x.trim()
+                .parse()
+                .with_context(|| format!("--frames {s:?}: `{x}` is not a frame number"))
+        }
+    };
+    let start = num(a, all.start)?;
+    let end = num(b, all.end)?.saturating_add(u32::from(inclusive));
+    if start < all.start || end > all.end || start >= end {
+        bail!(
+            "--frames {s:?}: the capture has frames {}..{}",
+            all.start,
+            all.end
+        );
+    }
+    Ok(start..end)
+}
+
+pub fn parse_vec3(s: &str) -> Result<[f64; 3], String> {
+    let v: Vec<f64> = s
+        .split(',')
+        .map(|p| p.trim().parse::<f64>().map_err(|e| format!("{p:?}: {e}")))
+        .collect::<Result<_, _>>()?;
+    match v.as_slice() {
+        [a, b, c] if v.iter().all(|x| x.is_finite()) => Ok([*a, *b, *c]),
+        _ => Err(format!("expected three finite numbers X,Y,Z, found {s:?}")),
+    }
+}
+
+pub fn load_mesh(path: &Path) -> anyhow::Result<(Mesh, MeshMetric)> {
+    let mesh = Mesh::load(path, BoiSource::None)
+        .with_context(|| format!("reading the mesh {}", path.display()))?;
+    let metric = MeshMetric::new(&mesh);
+    Ok((mesh, metric))
+}
+
+/// The jaw frame's landmarks on the mandible, given or found.
+#[derive(clap::Args, Default)]
+pub struct Landmarks {
+    /// Vertex indices of the left and right condyles: L,R (default: found on the mesh).
+    #[arg(long, value_delimiter = ',')]
+    pub condyles: Option<Vec<usize>>,
+    /// Vertex index of the reference point, the lower incisal midpoint (default: found).
+    #[arg(long)]
+    pub reference: Option<usize>,
+}
+
+impl Landmarks {
+    /// The jaw frame of a mandible mesh.
+    pub fn frame(
+        &self,
+        mesh_path: &std::path::Path,
+        mesh: &jawtrack::capture::Mesh,
+    ) -> anyhow::Result<JawFrame> {
+        let condyles = match self.condyles.as_deref() {
+            None => None,
+            Some(&[l, r]) => Some([l, r]),
+            Some(other) => anyhow::bail!(
+                "--condyles: expected two vertex indices L,R, found {}",
+                other.len()
+            ),
+        };
+        JawFrame::from_mesh(mesh, condyles, self.reference)
+            .with_context(|| format!("{}: the jaw frame's landmarks", mesh_path.display()))
+    }
+}
+
+/// A choice's command-line name (`per-arch`), for output in plain words.
+pub fn name_of<T: clap::ValueEnum>(value: &T) -> String {
+    value
+        .to_possible_value()
+        .map(|p| p.get_name().to_string())
+        .unwrap_or_default()
+}

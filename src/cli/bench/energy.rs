@@ -1,0 +1,225 @@
+//! `jawtrack bench energy`: evaluations per second of every energy backend; one synthetic
+//! capture per mesh case, three cameras, half-resolution masks.
+
+use std::path::{Path, PathBuf};
+use std::time::{Duration, Instant};
+
+use anyhow::Context;
+use jawtrack::capture::{Arch, ArchPoses, Capture, OpenOptions};
+use jawtrack::energy::gpu::GpuEnergy;
+use jawtrack::energy::{CpuEnergy, EnergyEngine, Region, Scene};
+use jawtrack::synth::{Preset, SynthOptions, generate};
+
+#[derive(clap::Args)]
+pub struct EnergyArgs {
+    /// Print JSON instead of a table.
+    #[arg(long)]
+    json: bool,
+    /// Seconds to spend on each measurement (at least two runs each).
+    #[arg(long, default_value_t = 1.0)]
+    seconds: f64,
+    /// Folder with the real scans (upper.obj, lower.obj); skipped when absent.
+    #[arg(long, default_value = "../shared/data/scan-tag0")]
+    scans: PathBuf,
+    /// Triangles per arch of the simplified scan.
+    #[arg(long, default_value_t = 10_000)]
+    simplified: usize,
+    /// Candidates per batch.
+    #[arg(long, default_value_t = 64)]
+    batch: usize,
+    /// Which backends to time.
+    #[arg(long, value_delimiter = ',', default_value = "cpu,gpu,readback", value_parser = ["cpu", "gpu", "readback"])]
+    backends: Vec<String>,
+}
+
+#[derive(serde::Serialize)]
+struct Row {
+    mesh: String,
+    triangles: usize,
+    backend: String,
+    region: String,
+    batch: usize,
+    ms_per_evaluation: f64,
+    evaluations_per_second: f64,
+}
+
+#[derive(serde::Serialize)]
+struct Report {
+    machine: String,
+    adapter: Option<String>,
+    rows: Vec<Row>,
+}
+
+/// Candidates around the truth: small moves of the lower arch, as a search makes them.
+fn candidates(truth: &ArchPoses, n: usize) -> Vec<ArchPoses> {
+    (0..n)
+        .map(|k| {
+            let mut d = [0.0; 6];
+            d[k % 6] = (k as f64 / n as f64 - 0.5) * if k % 6 < 3 { 0.02 } else { 1.0 };
+            truth.with(Arch::Lower, truth.lower.with_euler_offset(&d))
+        })
+        .collect()
+}
+
+/// Mean time per evaluation of `batch` candidates, over at least two runs and `seconds`.
+fn time(engine: &dyn EnergyEngine, batch: &[ArchPoses], seconds: f64) -> anyhow::Result<f64> {
+    engine.evaluate(Arch::Lower, batch)?; // warm-up
+    let budget = Duration::from_secs_f64(seconds);
+    let started = Instant::now();
+    let mut runs = 0;
+    while runs < 2 || started.elapsed() < budget {
+        engine.evaluate(Arch::Lower, batch)?;
+        runs += 1;
+    }
+    Ok(started.elapsed().as_secs_f64() / (runs * batch.len()) as f64)
+}
+
+pub fn energy(a: EnergyArgs) -> anyhow::Result<()> {
+    let tmp = tempfile::tempdir()?;
+    // (name, scan folder, how the arches are simplified at load, lens)
+    let full = OpenOptions {
+        simplify_mm: 0.0,
+        ..OpenOptions::default()
+    };
+    let lens = Some(jawtrack::synth::BARREL_LENS);
+    type Case<'a> = (String, Option<&'a Path>, OpenOptions, Option<[f64; 5]>);
+    let mut cases: Vec<Case> = vec![
+        ("procedural".into(), None, full, None),
+        ("procedural, barrel lens".into(), None, full, lens),
+    ];
+    if a.scans.join("upper.obj").exists() {
+        let scans = Some(a.scans.as_path());
+        cases.push(("scan-tag0".into(), scans, full, None));
+        cases.push((
+            format!("scan-tag0 {} mm", jawtrack::capture::DEFAULT_SIMPLIFY_MM),
+            scans,
+            OpenOptions::default(),
+            None,
+        ));
+        cases.push((
+            "scan-tag0 simplified".to_string(),
+            scans,
+            OpenOptions {
+                max_triangles: Some(a.simplified),
+                ..full
+            },
+            None,
+        ));
+    } else {
+        eprintln!("no scans at {}: procedural arch only", a.scans.display());
+    }
+    let mut report = Report {
+        machine: format!("{} CPU threads", rayon::current_num_threads()),
+        adapter: None,
+        rows: Vec::new(),
+    };
+    for (name, meshes, open, distortion) in cases {
+        let dir = tmp
+            .path()
+            .join(match (meshes.is_some(), distortion.is_some()) {
+                (true, _) => "scan",
+                (false, false) => "procedural",
+                (false, true) => "procedural-lens",
+            });
+        if !dir.exists() {
+            let opts = SynthOptions {
+                frames: 6,
+                preset: Preset::Realistic,
+                meshes: meshes.map(Path::to_path_buf),
+                distortion,
+                ..SynthOptions::default()
+            };
+            generate(&dir, &opts, &|| {}).context("synthesising the benchmark capture")?;
+        }
+        let capture = Capture::open_with(&dir, open)?;
+        let masks = capture.load_masks(3)?;
+        let truth = capture
+            .gt_poses(3)
+            .context("benchmark capture without ground truth")?;
+        let batch = candidates(&truth, a.batch);
+        let scene = Scene::from_capture(&capture);
+        let triangles = capture.lower.triangles.len();
+        let mut engines: Vec<(String, Region, Box<dyn EnergyEngine>)> = Vec::new();
+        let want = |b: &str| a.backends.iter().any(|x| x == b);
+        for region in [Region::Relevant, Region::Footprint, Region::FullFrame] {
+            if want("cpu") {
+                engines.push((
+                    "cpu".into(),
+                    region,
+                    Box::new(CpuEnergy::with_region(scene.clone(), region)),
+                ));
+            }
+            // The GPU engine draws the footprint for `Energy`.
+            if want("gpu") && region != Region::Relevant {
+                match GpuEnergy::new(scene.clone(), region) {
+                    Ok(g) => {
+                        report.adapter = Some(g.context().describe());
+                        engines.push(("gpu".into(), region, Box::new(g)));
+                    }
+                    Err(e) => eprintln!("gpu: {e}"),
+                }
+            }
+        }
+        if want("readback") {
+            match GpuEnergy::readback_baseline(scene.clone()) {
+                Ok(g) => engines.push(("readback".into(), Region::FullFrame, Box::new(g))),
+                Err(e) => eprintln!("readback: {e}"),
+            }
+        }
+        anyhow::ensure!(!engines.is_empty(), "no backend to time");
+        // Every backend must agree with the first before it is timed (within a few pixels:
+        // see tests/gpu_energy.rs).
+        let reference = engines[0].2.as_mut();
+        reference.set_frame(&masks)?;
+        let expected = reference.evaluate(Arch::Lower, &batch[..1])?[0].total(0.4);
+        for (label, region, engine) in &mut engines {
+            engine.set_frame(&masks)?;
+            let got = engine.evaluate(Arch::Lower, &batch[..1])?[0].total(0.4);
+            anyhow::ensure!(
+                (got - expected).abs() <= 5.0,
+                "{label} {region:?} energy {got} differs from the CPU reference's {expected}"
+            );
+        }
+        for (label, region, engine) in &engines {
+            for n in [1, a.batch] {
+                let s = time(engine.as_ref(), &batch[..n], a.seconds)?;
+                eprintln!("{name}: {label} {region:?} batch {n}: {:.3} ms", s * 1e3);
+                report.rows.push(Row {
+                    mesh: name.clone(),
+                    triangles,
+                    backend: label.clone(),
+                    region: format!("{region:?}"),
+                    batch: n,
+                    ms_per_evaluation: s * 1e3,
+                    evaluations_per_second: 1.0 / s,
+                });
+            }
+        }
+    }
+    if a.json {
+        println!("{}", serde_json::to_string_pretty(&report)?);
+    } else {
+        println!(
+            "energy of one arch, three cameras, 960x540 masks; {}; adapter: {}",
+            report.machine,
+            report.adapter.as_deref().unwrap_or("none")
+        );
+        println!(
+            "{:<22} {:>9} {:<9} {:<10} {:>5} {:>11} {:>10}",
+            "mesh", "triangles", "backend", "region", "batch", "ms/eval", "evals/s"
+        );
+        for r in &report.rows {
+            println!(
+                "{:<22} {:>9} {:<9} {:<10} {:>5} {:>11.3} {:>10.1}",
+                r.mesh,
+                r.triangles,
+                r.backend,
+                r.region,
+                r.batch,
+                r.ms_per_evaluation,
+                r.evaluations_per_second
+            );
+        }
+    }
+    Ok(())
+}

@@ -1,0 +1,213 @@
+//! What several commands print: summaries of captures, tracking runs, scores and rigs.
+
+use std::path::Path;
+
+use jawtrack::capture::{ArchInit, Capture};
+use jawtrack::rig::eval::{EvalReport, Series};
+use jawtrack::synth::SynthReport;
+use jawtrack::track::score::{ScoreReport, Stats};
+use jawtrack::track::{Status, Summary};
+
+pub fn capture(c: &Capture) {
+    println!("capture {}: valid", c.dir.display());
+    let last = c.first_frame + c.frame_count - 1;
+    println!(
+        "frames {}..={} ({}), masks {:?}",
+        c.first_frame, last, c.frame_count, c.mask_mode
+    );
+    println!("camera  image      mask       masks found  distortion");
+    for cam in &c.cameras {
+        let k = &cam.calibrated;
+        let in_range = cam.frames_present.range(c.first_frame..=last).count();
+        println!(
+            "{:<6}  {}x{}  {:<9}  {:>5}/{:<5}  {}",
+            k.name,
+            k.width,
+            k.height,
+            cam.mask_size
+                .map(|(w, h)| format!("{w}x{h}"))
+                .unwrap_or_else(|| "none".into()),
+            in_range,
+            c.frame_count,
+            match (k.has_distortion(), k.lens_covers_the_image()) {
+                (false, _) => "no".to_string(),
+                (true, true) => "yes (models drawn through the lens)".to_string(),
+                (true, false) => format!(
+                    "yes, but the model folds back inside the image, {:.0} px from the centre: \
+                     nothing is drawn past it",
+                    k.lens_reach() * k.fx
+                ),
+            }
+        );
+    }
+    let describe = |name: &str, m: &jawtrack::capture::Mesh| {
+        let (lo, hi) = m.bounds();
+        println!(
+            "mesh {name}: {} vertices, {} triangles, {} BOI triangles, size {:.1} x {:.1} x {:.1} mm",
+            m.positions.len(),
+            m.triangles.len(),
+            m.boi_face_count(),
+            hi[0] - lo[0],
+            hi[1] - lo[1],
+            hi[2] - lo[2]
+        );
+    };
+    describe("upper", &c.upper);
+    describe("lower", &c.lower);
+    if let Some(m) = &c.mandible {
+        describe("mandible", m);
+    }
+    match &c.init {
+        None => println!("init.json: absent (tracking will need first-frame poses)"),
+        Some(init) => {
+            let kind = |a: &ArchInit| match a {
+                ArchInit::Pose(_) => "pose".to_string(),
+                ArchInit::Points(p) => format!("{} bootstrap points", p.len()),
+            };
+            println!(
+                "init.json: upper {}, lower {}",
+                kind(&init.upper),
+                kind(&init.lower)
+            );
+        }
+    }
+    match &c.gt {
+        None => println!("ground truth: none"),
+        Some(gt) => println!("ground truth: {} frames", gt.len()),
+    }
+}
+
+pub fn synth(out: &Path, r: &SynthReport) {
+    println!(
+        "wrote {} ({} frames in {:.2} s)",
+        out.display(),
+        r.frames,
+        r.seconds
+    );
+    println!(
+        "meshes: upper {} triangles ({} BOI), lower {} ({} BOI)",
+        r.triangles[0], r.boi_triangles[0], r.triangles[1], r.boi_triangles[1]
+    );
+    println!(
+        "motion: opening up to {:.1} mm, lateral {:.1} to {:.1} mm, protrusion up to {:.1} mm, condylar travel up to {:.1} mm",
+        r.max_opening_mm,
+        r.lateral_mm[0],
+        r.lateral_mm[1],
+        r.max_protrusion_mm,
+        r.max_condylar_travel_mm
+    );
+    println!(
+        "camera  mask size  frames with mask  mean mask px (upper, lower)  visible share (upper, lower)"
+    );
+    for c in &r.cameras {
+        println!(
+            "{:<6}  {}x{}    {:>5}             {:>7.0} {:>7.0}             {:>5.1}% {:>5.1}%",
+            c.name,
+            c.mask_size[0],
+            c.mask_size[1],
+            c.frames_with_mask,
+            c.mean_mask_pixels[0],
+            c.mean_mask_pixels[1],
+            100.0 * c.visible_share[0],
+            100.0 * c.visible_share[1]
+        );
+    }
+}
+
+pub fn track_summary(output: &Path, s: &Summary) {
+    println!(
+        "tracked {} frames ({} now) -> {}: {} ok, {} low-confidence, {} no-data",
+        s.records.len(),
+        s.tracked_now,
+        output.display(),
+        s.count(Status::Ok),
+        s.count(Status::LowConfidence),
+        s.count(Status::NoData)
+    );
+    if s.tracked_now > 0 {
+        println!(
+            "time {:.2} s per frame ({} energy evaluations per frame, {:.2} ms each), backend {}",
+            s.seconds / s.tracked_now as f64,
+            s.evaluations / s.tracked_now,
+            s.seconds * 1e3 / s.evaluations.max(1) as f64,
+            s.backend
+        );
+    }
+}
+
+pub fn score(r: &ScoreReport) {
+    println!(
+        "against ground truth, {} frames ({} ok, {} low-confidence, {} no-data): median / 95th percentile / max",
+        r.frames, r.frames_ok, r.frames_low_confidence, r.frames_no_data
+    );
+    let line = |name: &str, what: &str, s: &Stats| {
+        println!(
+            "  {name:<6} {what:<22} {:>8.3} {:>8.3} {:>8.3}",
+            s.median, s.p95, s.max
+        );
+    };
+    for (name, e) in [("upper", &r.upper), ("lower", &r.lower), ("jaw", &r.jaw)] {
+        line(name, "mean vertex error (mm)", &e.mean_vertex_mm);
+        line(name, "rotation error (deg)", &e.rotation_deg);
+        line(name, "translation error (mm)", &e.translation_mm);
+    }
+    line("upper", "area error (%)", &r.area_error_percent[0]);
+    line("lower", "area error (%)", &r.area_error_percent[1]);
+}
+
+pub fn rig_eval(r: &EvalReport) {
+    println!(
+        "reconstruction error of {} poses: largest vertex distance on a mesh of {} vertices (mm)",
+        r.poses, r.mesh_vertices
+    );
+    println!("model            mean   median      p95      max");
+    let row = |s: &Series| {
+        println!(
+            "{:<14} {:>6.3} {:>8.3} {:>8.3} {:>8.3}",
+            s.name, s.stats.mean, s.stats.median, s.stats.p95, s.stats.max
+        )
+    };
+    let rec = &r.reconstruction;
+    rec.pca.iter().for_each(row);
+    row(&rec.pca3_plain);
+    rec.nlpca.iter().for_each(row);
+    row(&rec.rig);
+    row(&rec.rig_clamped);
+    row(&rec.paper_rig);
+    println!(
+        "{:.1}% of the poses encode inside the valid ranges; encoding {:.3} ms a pose, decoding {:.2} µs",
+        100.0 * rec.valid_share,
+        r.encode_ms,
+        r.decode_us
+    );
+    if let Some(s) = &r.sampled {
+        println!(
+            "{} random rig poses, distance to the nearest captured pose (mm):",
+            s.dynamic_ranges.errors_mm.len()
+        );
+        row(&s.dynamic_ranges);
+        row(&s.static_ranges);
+    }
+}
+
+pub fn rig_compare(poses: usize, vertices: usize, rows: &[jawtrack::envelope::compare::Row]) {
+    println!(
+        "{poses} poses; errors on a mesh of {vertices} vertices (mm): largest vertex distance per pose, and the front-weighted mean distance"
+    );
+    println!(
+        "rig                           params   max: mean      p95      max   front-weighted: mean      max   learn (s)"
+    );
+    for r in rows {
+        println!(
+            "{:<30} {:>5} {:>10.3} {:>8.3} {:>8.3} {:>22.3} {:>8.3} {:>11.2}",
+            r.name,
+            r.parameters,
+            r.max_vertex_mm.mean,
+            r.max_vertex_mm.p95,
+            r.max_vertex_mm.max,
+            r.front_weighted_mm.mean,
+            r.front_weighted_mm.max,
+            r.learn_seconds
+        );
+    }
+}

@@ -1,0 +1,194 @@
+//! `rig learn`, `rig eval`, `rig compare`.
+
+use std::path::PathBuf;
+
+use anyhow::Context;
+use jawtrack::rig::model::NETWORK_COMPONENTS;
+use jawtrack::rig::{JawRig, RigSettings, read_jaw_poses};
+use serde::Serialize;
+
+use crate::cli::args::load_mesh;
+
+use super::load_poses;
+
+#[derive(clap::Args)]
+pub struct LearnArgs {
+    /// Jaw poses: tracks.json (frames with status `ok`), gt/poses.json or a jawtrack-jaw/1 file.
+    pub input: PathBuf,
+    /// The mesh the error is measured on, in the lower arch's frame: a mandible (best: it
+    /// includes the condyles) or the lower arch.
+    #[arg(long)]
+    pub mesh: PathBuf,
+    /// Where to write the rig.
+    #[arg(short, long)]
+    pub out: PathBuf,
+    /// Alpha radius of the valid-range shapes, in parameter units.
+    #[arg(long, default_value_t = RigSettings::default().alpha)]
+    pub alpha: f64,
+    /// Seed of the networks' initial weights.
+    #[arg(long, default_value_t = 0)]
+    pub seed: u64,
+    /// Training settings as JSON (fields of RigSettings; missing ones take their defaults):
+    /// a file, or the JSON itself when it starts with `{`.
+    #[arg(long)]
+    pub settings: Option<PathBuf>,
+    /// Print the summary as JSON.
+    #[arg(long)]
+    pub json: bool,
+}
+
+#[derive(clap::Args)]
+pub struct EvalArgs {
+    /// The rig file.
+    pub rig: PathBuf,
+    /// Jaw poses to reconstruct (usually the ones the rig was learned from).
+    pub input: PathBuf,
+    /// The mesh the error is measured on (lower arch frame).
+    #[arg(long)]
+    pub mesh: PathBuf,
+    /// Write histograms (SVG) and their data (JSON) here.
+    #[arg(long)]
+    pub plots: Option<PathBuf>,
+    /// Random rig poses for Fig. 13.
+    #[arg(long, default_value_t = 1000)]
+    pub samples: usize,
+    /// Seed of the random rig poses.
+    #[arg(long, default_value_t = 0)]
+    pub seed: u64,
+    /// Leave out the six-component NLPCA (trained here only for the figure).
+    #[arg(long)]
+    pub no_nlpca6: bool,
+    /// Print the report as JSON.
+    #[arg(long)]
+    pub json: bool,
+}
+
+#[derive(clap::Args)]
+pub struct CompareArgs {
+    pub input: PathBuf,
+    /// The mandible mesh (lower frame): jaw frame landmarks and the error metric.
+    #[arg(long)]
+    pub mesh: PathBuf,
+    #[command(flatten)]
+    pub landmarks: crate::cli::args::Landmarks,
+    #[arg(long)]
+    pub json: bool,
+}
+
+#[derive(Serialize)]
+struct LearnSummary<'a> {
+    rig: String,
+    poses: usize,
+    skipped: usize,
+    read_seconds: f64,
+    learn_seconds: f64,
+    singular_values_mm: &'a [f64],
+    network_unexplained: &'a [f64],
+    iterations: [u64; 3],
+    d1_range: [f64; 2],
+    bounds: [[f64; 2]; 3],
+}
+
+pub fn learn(a: LearnArgs) -> anyhow::Result<()> {
+    let (poses, read_seconds) = load_poses(&a.input)?;
+    let (_, metric) = load_mesh(&a.mesh)?;
+    let mut settings = crate::cli::args::rig_settings(a.settings.as_deref())?;
+    settings.alpha = a.alpha;
+    settings.network.seed = a.seed;
+    settings.mode.seed = a.seed;
+    settings.modes.seed = a.seed;
+    settings.validate(std::path::Path::new("--alpha"))?;
+    let rig = JawRig::learn(&poses.poses, &metric, &settings)?;
+    rig.save(&a.out)?;
+    let summary = LearnSummary {
+        rig: a.out.display().to_string(),
+        poses: poses.len(),
+        skipped: poses.skipped,
+        read_seconds,
+        learn_seconds: rig.training.seconds,
+        singular_values_mm: &rig.pca.singular_values,
+        network_unexplained: &rig.training.network.unexplained,
+        iterations: [
+            rig.training.network.iterations,
+            rig.training.lateral.iterations,
+            rig.training.protrusion.iterations,
+        ],
+        d1_range: rig.ranges.d1_range(),
+        bounds: rig.ranges.bounds,
+    };
+    if a.json {
+        println!("{}", serde_json::to_string_pretty(&summary)?);
+        return Ok(());
+    }
+    println!(
+        "learned {} from {} jaw poses ({} frames skipped: status not ok) in {:.2} s (poses read and mapped to se(3) in {:.1} ms)",
+        a.out.display(),
+        poses.len(),
+        poses.skipped,
+        rig.training.seconds,
+        read_seconds * 1e3
+    );
+    println!(
+        "PCA singular values (RMS mm-equivalent along each component): {}",
+        fmt_list(&rig.pca.singular_values, 3)
+    );
+    println!(
+        "NLPCA-{NETWORK_COMPONENTS}: share of variance unexplained with 1..{NETWORK_COMPONENTS} components: {}",
+        fmt_list(&rig.training.network.unexplained, 6)
+    );
+    let r = rig.ranges.d1_range();
+    println!(
+        "parameters: d1 (opening) {:.3}..{:.3}, d2 (lateral) {:.3}..{:.3}, d3 (protrusion) {:.3}..{:.3}; valid d1 {:.3}..{:.3} (alpha {})",
+        rig.ranges.bounds[0][0],
+        rig.ranges.bounds[0][1],
+        rig.ranges.bounds[1][0],
+        rig.ranges.bounds[1][1],
+        rig.ranges.bounds[2][0],
+        rig.ranges.bounds[2][1],
+        r[0],
+        r[1],
+        rig.settings.alpha
+    );
+    Ok(())
+}
+
+fn fmt_list(v: &[f64], digits: usize) -> String {
+    v.iter()
+        .map(|x| format!("{x:.digits$}"))
+        .collect::<Vec<_>>()
+        .join(", ")
+}
+
+pub fn evaluate(a: EvalArgs) -> anyhow::Result<()> {
+    let rig = JawRig::load(&a.rig)?;
+    let (poses, _) = load_poses(&a.input)?;
+    let (_, metric) = load_mesh(&a.mesh)?;
+    let report =
+        jawtrack::rig::eval::report(&rig, &poses.poses, &metric, a.samples, a.seed, !a.no_nlpca6)?;
+    if let Some(dir) = &a.plots {
+        jawtrack::rig::plot::write_figures(dir, &report.reconstruction, report.sampled.as_ref())
+            .with_context(|| format!("writing the figures to {}", dir.display()))?;
+    }
+    if a.json {
+        println!("{}", serde_json::to_string_pretty(&report)?);
+    } else {
+        crate::cli::report::rig_eval(&report);
+        if let Some(dir) = &a.plots {
+            println!("figures: {}", dir.display());
+        }
+    }
+    Ok(())
+}
+
+pub fn compare(a: CompareArgs) -> anyhow::Result<()> {
+    let poses = read_jaw_poses(&a.input)?;
+    let (mesh, metric) = load_mesh(&a.mesh)?;
+    let frame = a.landmarks.frame(&a.mesh, &mesh)?;
+    let rows = jawtrack::envelope::compare::compare(&poses.poses, &frame, &metric)?;
+    if a.json {
+        println!("{}", serde_json::to_string_pretty(&rows)?);
+        return Ok(());
+    }
+    crate::cli::report::rig_compare(poses.len(), metric.vertex_count(), &rows);
+    Ok(())
+}

@@ -1,0 +1,229 @@
+//! `rig pose`, `rig encode`, `rig reconstruct`, `rig ik`.
+
+use std::path::PathBuf;
+use std::time::Instant;
+
+use anyhow::{Context, bail};
+use jawtrack::anatomy::MeshMetric;
+use jawtrack::geometry::Pose;
+use jawtrack::rig::JawRig;
+use serde::Serialize;
+
+use super::load_poses;
+use crate::cli::args::{load_mesh, parse_vec3};
+
+#[derive(clap::Args)]
+pub struct PoseArgs {
+    pub rig: PathBuf,
+    pub d1: f64,
+    pub d2: f64,
+    pub d3: f64,
+    /// Clamp the parameters into the valid ranges before posing.
+    #[arg(long)]
+    pub clamp: bool,
+}
+
+#[derive(clap::Args)]
+pub struct EncodeArgs {
+    pub rig: PathBuf,
+    /// Jaw poses: tracks.json, gt/poses.json or a jawtrack-jaw/1 file.
+    pub input: PathBuf,
+    /// Where to write the parameters (JSON).
+    #[arg(short, long)]
+    pub out: PathBuf,
+}
+
+#[derive(clap::Args)]
+pub struct ReconstructArgs {
+    pub rig: PathBuf,
+    pub input: PathBuf,
+    /// Where to write the reconstructed jaw poses (jawtrack-jaw/1).
+    #[arg(short, long)]
+    pub out: PathBuf,
+}
+
+#[derive(clap::Args)]
+pub struct IkArgs {
+    pub rig: PathBuf,
+    /// The point to move, lower frame (mm): X,Y,Z.
+    #[arg(long, value_parser = parse_vec3, conflicts_with = "vertex")]
+    pub point: Option<[f64; 3]>,
+    /// Or a vertex of --mesh.
+    #[arg(long, requires = "mesh")]
+    pub vertex: Option<usize>,
+    /// The mesh --vertex refers to (lower frame).
+    #[arg(long)]
+    pub mesh: Option<PathBuf>,
+    /// Where the point should go, upper frame (mm): X,Y,Z.
+    #[arg(long, value_parser = parse_vec3)]
+    pub target: [f64; 3],
+    /// The current parameters: D1,D2,D3.
+    #[arg(long, value_parser = parse_vec3, default_value = "0,0,0")]
+    pub from: [f64; 3],
+}
+
+#[derive(Serialize)]
+struct PoseReport {
+    params: [f64; 3],
+    valid: bool,
+    /// The nearest valid parameters (equal to `params` when they are valid).
+    valid_params: [f64; 3],
+    /// upper_from_lower for `params` (or `valid_params` with --clamp).
+    pose: jawtrack::capture::json::PoseJson,
+}
+
+pub fn pose(a: PoseArgs) -> anyhow::Result<()> {
+    let rig = JawRig::load(&a.rig)?;
+    let d = [a.d1, a.d2, a.d3];
+    if d.iter().any(|v| !v.is_finite()) {
+        bail!("the parameters must be finite numbers");
+    }
+    let valid_params = rig.clamp(&d);
+    let used = if a.clamp { valid_params } else { d };
+    let report = PoseReport {
+        params: d,
+        valid: rig.is_valid(&d),
+        valid_params,
+        pose: (&rig.pose(&used)).into(),
+    };
+    println!("{}", serde_json::to_string_pretty(&report)?);
+    Ok(())
+}
+
+#[derive(Serialize)]
+struct EncodedFrame {
+    frame: u32,
+    params: [f64; 3],
+    valid: bool,
+    /// Largest distance of the rig's probe points (extreme mesh vertices) between the pose
+    /// and the rig's pose for `params` (mm).
+    probe_error_mm: f64,
+}
+
+#[derive(Serialize)]
+struct EncodedFile {
+    format: &'static str,
+    rig: String,
+    frames: Vec<EncodedFrame>,
+}
+
+pub(super) fn probe_metric(rig: &JawRig) -> MeshMetric {
+    MeshMetric::from_points(
+        rig.probes_mm
+            .iter()
+            .map(|p| nalgebra::Vector3::from(*p))
+            .collect(),
+    )
+}
+
+pub fn encode(a: EncodeArgs) -> anyhow::Result<()> {
+    let rig = JawRig::load(&a.rig)?;
+    let (poses, _) = load_poses(&a.input)?;
+    let probes = probe_metric(&rig);
+    let frames: Vec<EncodedFrame> = poses
+        .frames
+        .iter()
+        .zip(&poses.poses)
+        .map(|(&frame, p)| {
+            let params = rig.encode(p);
+            EncodedFrame {
+                frame,
+                params,
+                valid: rig.is_valid(&params),
+                probe_error_mm: probes.max_distance(p, &rig.pose(&params)),
+            }
+        })
+        .collect();
+    let valid = frames.iter().filter(|f| f.valid).count();
+    let mean = frames.iter().map(|f| f.probe_error_mm).sum::<f64>() / frames.len().max(1) as f64;
+    jawtrack::capture::write_json_atomic(
+        &a.out,
+        &EncodedFile {
+            format: "jawtrack-rig-params/1",
+            rig: a.rig.display().to_string(),
+            frames,
+        },
+    )?;
+    println!(
+        "encoded {} poses into {} ({} valid; mean probe error {:.3} mm)",
+        poses.len(),
+        a.out.display(),
+        valid,
+        mean
+    );
+    Ok(())
+}
+
+pub fn reconstruct(a: ReconstructArgs) -> anyhow::Result<()> {
+    let rig = JawRig::load(&a.rig)?;
+    let (poses, _) = load_poses(&a.input)?;
+    let probes = probe_metric(&rig);
+    let mut clamped = 0;
+    let mut worst: f64 = 0.0;
+    let out: Vec<Pose> = poses
+        .poses
+        .iter()
+        .map(|p| {
+            let d = rig.encode(p);
+            let c = rig.clamp(&d);
+            clamped += (c != d) as usize;
+            let q = rig.pose(&c);
+            worst = worst.max(probes.max_distance(p, &q));
+            q
+        })
+        .collect();
+    jawtrack::rig::write_jaw_poses(&a.out, &poses.frames, &out)?;
+    println!(
+        "wrote {} reconstructed poses to {} ({} clamped into the valid ranges; largest probe error {:.3} mm)",
+        out.len(),
+        a.out.display(),
+        clamped,
+        worst
+    );
+    Ok(())
+}
+
+#[derive(Serialize)]
+struct IkReport {
+    #[serde(flatten)]
+    result: jawtrack::rig::ik::IkResult,
+    valid: bool,
+    milliseconds: f64,
+    pose: jawtrack::capture::json::PoseJson,
+}
+
+pub fn ik(a: IkArgs) -> anyhow::Result<()> {
+    let rig = JawRig::load(&a.rig)?;
+    let point = match (a.point, a.vertex, &a.mesh) {
+        (Some(p), _, _) => nalgebra::Vector3::from(p),
+        (None, Some(v), Some(mesh)) => {
+            let (m, _) = load_mesh(mesh)?;
+            let p = m.positions.get(v).with_context(|| {
+                format!(
+                    "{}: --vertex {v}: the mesh has {} vertices",
+                    mesh.display(),
+                    m.positions.len()
+                )
+            })?;
+            nalgebra::Vector3::new(p[0] as f64, p[1] as f64, p[2] as f64)
+        }
+        _ => bail!("give the point to move: --point X,Y,Z or --vertex I --mesh MESH"),
+    };
+    let started = Instant::now();
+    let result = jawtrack::rig::ik::solve(
+        &rig,
+        &point,
+        &nalgebra::Vector3::from(a.target),
+        &a.from,
+        &Default::default(),
+    );
+    let milliseconds = started.elapsed().as_secs_f64() * 1e3;
+    let report = IkReport {
+        valid: rig.is_valid(&result.params),
+        pose: (&rig.pose(&result.params)).into(),
+        result,
+        milliseconds,
+    };
+    println!("{}", serde_json::to_string_pretty(&report)?);
+    Ok(())
+}

@@ -1,0 +1,52 @@
+//! The long steps several commands take, each with its progress bar on stderr.
+
+use std::path::Path;
+
+use anyhow::Context;
+use jawtrack::capture::Capture;
+use jawtrack::synth::{self, SynthOptions, SynthReport};
+use jawtrack::track::{Session, SessionOptions, Summary};
+
+/// Write a synthetic capture.
+pub fn synthesise(out: &Path, opts: &SynthOptions) -> anyhow::Result<SynthReport> {
+    let bar = super::progress_bar(opts.frames as u64, "synth");
+    let report = synth::generate(out, opts, &|| bar.inc(1))
+        .with_context(|| format!("writing a synthetic capture to {}", out.display()))?;
+    bar.finish_and_clear();
+    Ok(report)
+}
+
+/// Open a capture and (optionally) decode every mask of every frame.
+pub fn open_and_check(dir: &Path, decode_all: bool) -> anyhow::Result<Capture> {
+    let capture =
+        Capture::open(dir).with_context(|| format!("invalid capture {}", dir.display()))?;
+    if decode_all {
+        let bar = super::progress_bar(capture.frame_count as u64, "decoding masks");
+        for frame in capture.frames() {
+            capture
+                .load_masks(frame)
+                .with_context(|| format!("invalid capture {}", dir.display()))?;
+            bar.inc(1);
+        }
+        bar.finish_and_clear();
+    }
+    Ok(capture)
+}
+
+/// Track a capture as `options` say, printing the engine chosen.
+pub fn track(capture: &Capture, options: SessionOptions) -> anyhow::Result<Summary> {
+    let lambda = options.settings.search.lambda;
+    let session = Session::open(capture, options)?;
+    eprintln!("energy backend: {}", session.backend());
+    let bar = super::progress_bar(session.todo().len() as u64, "tracking");
+    let summary = session.run(&mut |r| {
+        let e = r
+            .energies
+            .as_ref()
+            .map_or(0.0, |[u, l]| u.total(lambda) + l.total(lambda));
+        bar.set_message(format!("tracking (E = {e:.0}, {})", r.status.as_str()));
+        bar.inc(1);
+    })?;
+    bar.finish_and_clear();
+    Ok(summary)
+}

@@ -1,0 +1,193 @@
+//! A tracking run from a capture to tracks.json, as `track`, `demo` and `bench track` do it:
+//! the frames to do (after those a resumed run already has), the energy engine, the journal
+//! and tracks.json, overlays. [`Session::open`] settles all of that before any frame is
+//! tracked, so a caller can say what was chosen; [`Session::run`] then tracks.
+
+use std::ops::Range;
+use std::path::{Path, PathBuf};
+use std::time::Instant;
+
+use super::output::{TracksWriter, record_poses};
+use super::overlay;
+use super::score::{ScoreReport, score};
+use super::sequence::{FrameResult, Status, TrackSettings, TrackState, track_frames};
+use crate::capture::json::FrameRecordJson;
+use crate::capture::{ArchPoses, Capture};
+use crate::energy::{Backend, EnergyEngine, Region, Scene, open_engine};
+use crate::error::{Error, Result};
+
+/// What a run is asked to do.
+#[derive(Debug, Clone)]
+pub struct SessionOptions {
+    /// Where tracks.json goes (its journal beside it).
+    pub output: PathBuf,
+    /// The frames to track; `None`: all of the capture's.
+    pub frames: Option<Range<u32>>,
+    pub backend: Backend,
+    /// What the engine renders; tracking reads only the energy, so the default draws only
+    /// what can change it.
+    pub region: Region,
+    /// Write the paper's overlay pictures per camera and frame into this folder.
+    pub overlays: Option<PathBuf>,
+    /// Continue after the last complete frame of an earlier run of the same output.
+    pub resume: bool,
+    /// Start over when the output exists.
+    pub force: bool,
+    pub settings: TrackSettings,
+}
+
+impl SessionOptions {
+    /// Every frame, the default engine and settings, into `output`.
+    pub fn new(output: impl Into<PathBuf>) -> SessionOptions {
+        SessionOptions {
+            output: output.into(),
+            frames: None,
+            backend: Backend::Auto,
+            region: Region::Relevant,
+            overlays: None,
+            resume: false,
+            force: false,
+            settings: TrackSettings::default(),
+        }
+    }
+}
+
+/// What a finished run did.
+#[derive(Debug, Clone)]
+pub struct Summary {
+    /// Every record of tracks.json, those of an earlier run included.
+    pub records: Vec<FrameRecordJson>,
+    /// Frames tracked by this run.
+    pub tracked_now: usize,
+    pub seconds: f64,
+    pub evaluations: usize,
+    /// The engine and why it was chosen.
+    pub backend: String,
+}
+
+impl Summary {
+    /// How many of the records have this status.
+    pub fn count(&self, status: Status) -> usize {
+        self.records.iter().filter(|r| r.status() == status).count()
+    }
+}
+
+/// An opened run: frames to do, engine, writer.
+pub struct Session<'c> {
+    capture: &'c Capture,
+    options: SessionOptions,
+    writer: TracksWriter,
+    state: TrackState,
+    todo: Range<u32>,
+    engine: Box<dyn EnergyEngine>,
+    backend: String,
+}
+
+impl<'c> Session<'c> {
+    pub fn open(capture: &'c Capture, options: SessionOptions) -> Result<Session<'c>> {
+        options.settings.validate()?;
+        let all = capture.frames();
+        let range = options.frames.clone().unwrap_or(all.clone());
+        if range.start < all.start || range.end > all.end || range.start >= range.end {
+            return Err(Error::invalid(
+                &capture.dir,
+                "frames",
+                format!(
+                    "{}..{} asked for, but the capture has frames {}..{}",
+                    range.start, range.end, all.start, all.end
+                ),
+            ));
+        }
+        let (writer, done) = TracksWriter::open(&options.output, options.resume, options.force)?;
+        let next = done
+            .last()
+            .map_or(range.start, |r| r.frame + 1)
+            .max(range.start);
+        let last_ok = done.iter().rev().find(|r| r.status() == Status::Ok);
+        let state = match last_ok {
+            Some(last_ok) if options.resume => {
+                let (last, _) = record_poses(&options.output, last_ok)?;
+                let mut state = TrackState::new(last);
+                let before = done
+                    .iter()
+                    .rev()
+                    .find(|r| r.frame + 1 == last_ok.frame && r.status() == Status::Ok);
+                state.before = before
+                    .map(|r| record_poses(&options.output, r))
+                    .transpose()?
+                    .map(|(p, _)| p);
+                state
+            }
+            _ => TrackState::new(capture.initial_poses()?),
+        };
+        let opened = open_engine(
+            options.backend,
+            Scene::from_capture(capture),
+            options.region,
+        )?;
+        Ok(Session {
+            capture,
+            writer,
+            state,
+            todo: next..range.end,
+            engine: opened.engine,
+            backend: opened.choice,
+            options,
+        })
+    }
+
+    /// The frames this run will track.
+    pub fn todo(&self) -> Range<u32> {
+        self.todo.clone()
+    }
+
+    /// The engine and why it was chosen.
+    pub fn backend(&self) -> &str {
+        &self.backend
+    }
+
+    /// Track every frame to do; `on_frame` sees each as it is written (for progress).
+    pub fn run(mut self, on_frame: &mut dyn FnMut(&FrameResult)) -> Result<Summary> {
+        let started = Instant::now();
+        let (mut evaluations, mut tracked_now) = (0, 0);
+        let (capture, writer, overlays) = (self.capture, &mut self.writer, &self.options.overlays);
+        track_frames(
+            capture,
+            self.engine.as_mut(),
+            &self.options.settings,
+            self.todo.clone(),
+            &mut self.state,
+            &mut |r, masks| {
+                writer.push(r)?;
+                if let Some(dir) = overlays {
+                    overlay::write_overlays(dir, capture, masks, &r.poses)?;
+                }
+                evaluations += r.evaluations;
+                tracked_now += 1;
+                on_frame(r);
+                Ok(())
+            },
+        )?;
+        Ok(Summary {
+            records: self.writer.finish()?,
+            tracked_now,
+            seconds: started.elapsed().as_secs_f64(),
+            evaluations,
+            backend: self.backend,
+        })
+    }
+}
+
+/// Score written records (of tracks.json at `path`) against the capture's ground truth, if it
+/// has any.
+pub fn score_records(
+    capture: &Capture,
+    path: &Path,
+    records: &[FrameRecordJson],
+) -> Result<Option<ScoreReport>> {
+    let tracked: Vec<(FrameRecordJson, ArchPoses)> = records
+        .iter()
+        .map(|r| Ok((r.clone(), record_poses(path, r)?.0)))
+        .collect::<Result<_>>()?;
+    Ok(score(capture, &tracked))
+}
