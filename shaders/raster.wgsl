@@ -2,9 +2,8 @@
 // atlas (R8Uint: 0 none, 1 body, 2 boundary of interest), depth-tested. The CPU twin is
 // src/energy/raster.rs.
 //
-// The same vertex stage also drives the `readback` baseline, the paper's architecture: mask in
-// white, model in red at alpha 0.5 (pink over the mask), BOI in green, into a colour target
-// that is read back whole and counted on the CPU (fs_mask, fs_colour).
+// The readback baseline's stages (shaders/readback.wgsl) are appended to this file: they draw
+// with the same vertex stages.
 //
 // One `Draw` per draw call, selected by the instance index (draw_indexed's first instance).
 //
@@ -111,7 +110,7 @@ fn fs_class(in: VsOut) -> @location(0) u32 {
 
 // Clearing one tile: a triangle covering the whole viewport, at the far plane, class none.
 // (A render pass clear would clear the whole atlas; this clears only the tile.)
-// The same triangle with the instance index passed on draws the mask (fs_mask).
+// The same triangle with the instance index passed on draws the mask (readback.wgsl's fs_mask).
 @vertex
 fn vs_clear(@builtin(vertex_index) i: u32, @builtin(instance_index) draw: u32) -> VsOut {
     let corner = vec2<f32>(f32((i << 1u) & 2u), f32(i & 2u));
@@ -120,39 +119,4 @@ fn vs_clear(@builtin(vertex_index) i: u32, @builtin(instance_index) draw: u32) -
     out.class_id = 0u;
     out.draw = draw;
     return out;
-}
-
-@fragment
-fn fs_clear_colour(in: VsOut) -> @location(0) vec4<f32> {
-    return vec4<f32>(0.0, 0.0, 0.0, 0.0);
-}
-
-// Readback baseline: the scored arch's mask pixels in white.
-@fragment
-fn fs_mask(in: VsOut) -> @location(0) vec4<f32> {
-    let d = draws[in.draw];
-    let pixel = vec2<i32>(floor(in.position.xy)) - d.mask_offset;
-    let label = textureLoad(masks, pixel, d.layer, 0).r;
-    if (label & d.arch_bit) == 0u {
-        discard;
-    }
-    return vec4<f32>(1.0, 1.0, 1.0, 1.0);
-}
-
-// Readback baseline: body red, BOI green, at alpha 0.5 over the mask's white or black. The mix
-// is what the paper's alpha blending gives, computed here and written without blending, so
-// that surfaces meeting at exactly the same depth (both pass the equal-depth test) do not
-// blend twice. Class none (the other arch in per-arch mode) only hides: it was drawn in the
-// depth pre-pass.
-@fragment
-fn fs_colour(in: VsOut) -> @location(0) vec4<f32> {
-    if in.class_id == 0u {
-        discard;
-    }
-    let d = draws[in.draw];
-    let pixel = vec2<i32>(floor(in.position.xy)) - d.mask_offset;
-    let on_mask = (textureLoad(masks, pixel, d.layer, 0).r & d.arch_bit) != 0u;
-    let under = select(vec3<f32>(0.0), vec3<f32>(1.0), on_mask);
-    let model = select(vec3<f32>(0.0, 1.0, 0.0), vec3<f32>(1.0, 0.0, 0.0), in.class_id == 1u);
-    return vec4<f32>(mix(under, model, 0.5), 1.0);
 }

@@ -10,12 +10,10 @@ use rayon::prelude::*;
 
 use super::backfaces::{self, AwaySign};
 use super::clusters::{self, Cluster};
+use super::histogram;
 use super::raster::{self, Bounds, CLASS_BODY, CLASS_BOI, Placed, Target};
 use super::relevance::{LabelledTiles, Relevance};
-use super::{
-    Counts, Energy, EnergyEngine, MASK_NONE, MASK_OTHER, MASK_OWN, Region, Scene,
-    counts_with_outside, mask_totals,
-};
+use super::{Counts, Energy, EnergyEngine, Region, Scene, mask_totals};
 use crate::capture::{Arch, ArchPoses, FrameMasks, LOWER_BIT, LabelMask, Mesh, UPPER_BIT};
 use crate::error::Result;
 use crate::geometry::{Camera, Pose};
@@ -158,7 +156,7 @@ impl CpuEnergy {
                 away: self.away[a],
             });
             render(&self.scene, self.region, cam, arch, poses, other, skip, s);
-            count(
+            histogram::count(
                 cam,
                 &s.target,
                 &prep.mask,
@@ -243,65 +241,6 @@ fn render(
             }
         }
     }
-}
-
-/// The nine bins over the whole mask: counted inside the target, derived outside it.
-fn count(cam: &Camera, target: &Target, mask: &LabelMask, arch: Arch, totals: [u64; 2]) -> Counts {
-    let (own, other) = (arch.mask_bit(), arch.other().mask_bit());
-    let mut bins = [0u64; 9];
-    if let Some(r) = target.rect {
-        let w = r.width as usize;
-        for y in 0..r.height as usize {
-            let start = (r.y0 as usize + y) * mask.width as usize + r.x0 as usize;
-            let row = count_row(
-                &mask.data[start..start + w],
-                &target.class[y * w..(y + 1) * w],
-                own,
-                other,
-            );
-            for (b, n) in bins.iter_mut().zip(row) {
-                *b += n as u64;
-            }
-        }
-    }
-    counts_with_outside(bins, cam, totals)
-}
-
-/// The nine bins of one row (mask state own, else other, else none; times class), written
-/// without branches or indexed stores so that it vectorises: it is most of the CPU energy's
-/// time after rasterising.
-fn count_row(mask: &[u8], class: &[u8], own: u8, other: u8) -> [u32; 9] {
-    // Per mask state (own, other) and overall: pixels, body pixels, BOI pixels.
-    let [mut own_n, mut own_body, mut own_boi] = [0u32; 3];
-    let [mut other_n, mut other_body, mut other_boi] = [0u32; 3];
-    let [mut body, mut boi] = [0u32; 2];
-    for (&m, &c) in mask.iter().zip(class) {
-        let o = ((m & own) != 0) as u32;
-        let x = ((m & other) != 0) as u32 & (o ^ 1);
-        let b = (c == CLASS_BODY) as u32;
-        let i = (c == CLASS_BOI) as u32;
-        own_n += o;
-        own_body += o & b;
-        own_boi += o & i;
-        other_n += x;
-        other_body += x & b;
-        other_boi += x & i;
-        body += b;
-        boi += i;
-    }
-    let none_n = mask.len() as u32 - own_n - other_n;
-    let (none_body, none_boi) = (body - own_body - other_body, boi - own_boi - other_boi);
-    let mut bins = [0u32; 9];
-    for (state, [n, b, i]) in [
-        (MASK_OWN, [own_n, own_body, own_boi]),
-        (MASK_OTHER, [other_n, other_body, other_boi]),
-        (MASK_NONE, [none_n, none_body, none_boi]),
-    ] {
-        bins[state * 3] = n - b - i;
-        bins[state * 3 + 1] = b;
-        bins[state * 3 + 2] = i;
-    }
-    bins
 }
 
 impl EnergyEngine for CpuEnergy {

@@ -9,6 +9,7 @@ pub mod cpu;
 pub mod gpu;
 #[doc(hidden)]
 pub mod hand_counted;
+pub mod histogram;
 pub mod lens;
 pub mod raster;
 pub mod relevance;

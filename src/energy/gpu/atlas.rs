@@ -2,6 +2,11 @@
 //! shelf. A batch that does not fit one page is rendered and counted page after page in the
 //! same submission.
 
+/// Side of an atlas page (pixels); masks up to this size are supported.
+pub const PAGE: u32 = 4096;
+/// A dispatch's z extent is at most 65535 workgroups.
+pub const MAX_TILES_PER_PAGE: usize = 65535;
+
 /// Where a tile of `width x height` lands: page and origin in that page.
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
 pub struct Placement {
