@@ -47,6 +47,41 @@ impl Arch {
             Arch::Lower => Arch::Upper,
         }
     }
+    /// 0 for the upper arch, 1 for the lower: the order of [`Arch::BOTH`] and of
+    /// [`PerArch::to_array`].
+    pub fn index(self) -> usize {
+        match self {
+            Arch::Upper => 0,
+            Arch::Lower => 1,
+        }
+    }
+}
+
+/// One value per arch.
+#[derive(Debug, Clone, Copy, Default, PartialEq, Eq)]
+pub struct PerArch<T> {
+    pub upper: T,
+    pub lower: T,
+}
+
+impl<T> PerArch<T> {
+    /// The value of each arch from `f`.
+    pub fn from_fn(mut f: impl FnMut(Arch) -> T) -> PerArch<T> {
+        PerArch {
+            upper: f(Arch::Upper),
+            lower: f(Arch::Lower),
+        }
+    }
+    pub fn get(&self, arch: Arch) -> &T {
+        match arch {
+            Arch::Upper => &self.upper,
+            Arch::Lower => &self.lower,
+        }
+    }
+    /// Upper, lower.
+    pub fn to_array(self) -> [T; 2] {
+        [self.upper, self.lower]
+    }
 }
 
 /// Both arches' poses in the world (`world_from_upper`, `world_from_lower`).

@@ -13,8 +13,8 @@ use super::clusters::{self, Cluster};
 use super::histogram;
 use super::raster::{self, Bounds, CLASS_BODY, CLASS_BOI, Placed, Target};
 use super::relevance::{LabelledTiles, Relevance};
-use super::{Counts, Energy, EnergyEngine, Region, Scene, mask_totals};
-use crate::capture::{Arch, ArchPoses, FrameMasks, LOWER_BIT, LabelMask, Mesh, UPPER_BIT};
+use super::{Counts, Energy, EnergyEngine, MaskTotals, Region, Scene, frame_totals};
+use crate::capture::{Arch, ArchPoses, FrameMasks, LOWER_BIT, LabelMask, Mesh, PerArch, UPPER_BIT};
 use crate::error::Result;
 use crate::geometry::{Camera, Pose};
 
@@ -22,7 +22,7 @@ use crate::geometry::{Camera, Pose};
 struct PreparedMask {
     mask: LabelMask,
     /// Per scored arch (upper, lower): see `mask_totals`.
-    totals: [[u64; 2]; 2],
+    totals: PerArch<MaskTotals>,
     /// Where either arch's label is (for [`Region::Relevant`]).
     tiles: LabelledTiles,
 }
@@ -148,7 +148,7 @@ impl CpuEnergy {
         };
         SCRATCH.with(|s| {
             let s = &mut *s.borrow_mut();
-            let a = (arch == Arch::Lower) as usize;
+            let a = arch.index();
             let skip = (self.region == Region::Relevant).then(|| Skip {
                 tiles: &prep.tiles,
                 boi_vertices: &self.boi_vertices[a],
@@ -156,13 +156,7 @@ impl CpuEnergy {
                 away: self.away[a],
             });
             render(&self.scene, self.region, cam, arch, poses, other, skip, s);
-            histogram::count(
-                cam,
-                &s.target,
-                &prep.mask,
-                arch,
-                prep.totals[(arch == Arch::Lower) as usize],
-            )
+            histogram::count(cam, &s.target, &prep.mask, arch, *prep.totals.get(arch))
         })
     }
 }
@@ -258,10 +252,7 @@ impl EnergyEngine for CpuEnergy {
             .iter()
             .map(|m| {
                 m.as_ref().map(|mask| PreparedMask {
-                    totals: [
-                        mask_totals(mask, Arch::Upper),
-                        mask_totals(mask, Arch::Lower),
-                    ],
+                    totals: frame_totals(mask),
                     tiles: LabelledTiles::new(mask, UPPER_BIT | LOWER_BIT),
                     mask: mask.clone(),
                 })

@@ -3,7 +3,7 @@
 //! the mask's totals.
 
 use super::raster::{CLASS_BODY, CLASS_BOI, Target};
-use super::{Counts, MASK_NONE, MASK_OTHER, MASK_OWN, counts_with_outside};
+use super::{Counts, MASK_NONE, MASK_OTHER, MASK_OWN, MaskTotals, counts_with_outside};
 use crate::capture::{Arch, LabelMask};
 use crate::geometry::Camera;
 
@@ -13,7 +13,7 @@ pub fn count(
     target: &Target,
     mask: &LabelMask,
     arch: Arch,
-    totals: [u64; 2],
+    totals: MaskTotals,
 ) -> Counts {
     let (own, other) = (arch.mask_bit(), arch.other().mask_bit());
     let mut bins = [0u64; 9];

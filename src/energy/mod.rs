@@ -14,7 +14,7 @@ pub mod lens;
 pub mod raster;
 pub mod relevance;
 
-use crate::capture::{Arch, ArchPoses, Capture, FrameMasks, MaskMode, Mesh};
+use crate::capture::{Arch, ArchPoses, Capture, FrameMasks, MaskMode, Mesh, PerArch};
 use crate::error::Result;
 use crate::geometry::Camera;
 
@@ -61,30 +61,42 @@ pub const MASK_OWN: usize = 1;
 /// The pixel shows the other arch (per-arch masks only).
 pub const MASK_OTHER: usize = 2;
 
-/// Per camera and scored arch, the mask's pixel totals: the arch's own pixels and the other
-/// arch's (the rest show neither).
-pub fn mask_totals(mask: &crate::capture::LabelMask, arch: Arch) -> [u64; 2] {
+/// A mask's pixel totals for a scored arch: its own pixels and the other arch's (the rest
+/// show neither).
+#[derive(Debug, Clone, Copy, Default, PartialEq, Eq)]
+pub struct MaskTotals {
+    pub own: u64,
+    pub other: u64,
+}
+
+/// The totals of `mask` for the scored `arch`.
+pub fn mask_totals(mask: &crate::capture::LabelMask, arch: Arch) -> MaskTotals {
     let (own, other) = (arch.mask_bit(), arch.other().mask_bit());
-    let mut t = [0u64; 2];
+    let mut t = MaskTotals::default();
     for &m in &mask.data {
         if m & own != 0 {
-            t[0] += 1;
+            t.own += 1;
         } else if m & other != 0 {
-            t[1] += 1;
+            t.other += 1;
         }
     }
     t
 }
 
+/// The totals of `mask` for each scored arch.
+pub fn frame_totals(mask: &crate::capture::LabelMask) -> PerArch<MaskTotals> {
+    PerArch::from_fn(|arch| mask_totals(mask, arch))
+}
+
 /// The nine bins of a camera from the bins counted inside a rendered region, adding the
-/// pixels outside it (all class none) from the mask's totals (own, other).
-pub fn counts_with_outside(inside: [u64; 9], cam: &Camera, totals: [u64; 2]) -> Counts {
+/// pixels outside it (all class none) from the mask's totals.
+pub fn counts_with_outside(inside: [u64; 9], cam: &Camera, totals: MaskTotals) -> Counts {
     let row = |m: usize| inside[m * 3..m * 3 + 3].iter().sum::<u64>();
     let all = cam.width as u64 * cam.height as u64;
     let mut bins = inside;
-    bins[MASK_OWN * 3] += totals[0] - row(MASK_OWN);
-    bins[MASK_OTHER * 3] += totals[1] - row(MASK_OTHER);
-    bins[MASK_NONE * 3] += (all - totals[0] - totals[1]) - row(MASK_NONE);
+    bins[MASK_OWN * 3] += totals.own - row(MASK_OWN);
+    bins[MASK_OTHER * 3] += totals.other - row(MASK_OTHER);
+    bins[MASK_NONE * 3] += (all - totals.own - totals.other) - row(MASK_NONE);
     Counts { bins }
 }
 

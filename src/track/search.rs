@@ -104,8 +104,9 @@ impl SearchSettings {
 pub struct Found {
     pub pose: Pose,
     pub energy: Energy,
-    /// The objective at `pose` (E plus the cross-label term and the contact penalty).
-    pub total: f64,
+    /// What the search minimised, at `pose`: the paper's E plus the cross-label term and the
+    /// penalties (contact, the jaw's manifold); [`Energy::total`] is the paper's E alone.
+    pub objective: f64,
     pub evaluations: usize,
 }
 
@@ -236,10 +237,10 @@ pub fn search(
             }
         }
     }
-    let (total, energy) = obj.evaluate(&[best])?.remove(0);
+    let (objective, energy) = obj.evaluate(&[best])?.remove(0);
     Ok(Found {
         pose: obj.pose(&best),
-        total,
+        objective,
         energy,
         evaluations: obj.evaluations,
     })

@@ -363,14 +363,14 @@ fn track_frame(
                     arch,
                     start,
                     *start.get(arch),
-                    &centres[(arch == Arch::Lower) as usize],
+                    &centres[arch.index()],
                     penalties,
                     &settings.search,
                     seed,
                 )?;
                 evaluations += found.evaluations;
-                if best.is_none_or(|(e, _)| found.total < e) {
-                    best = Some((found.total, found.pose));
+                if best.is_none_or(|(e, _)| found.objective < e) {
+                    best = Some((found.objective, found.pose));
                 }
             }
             let (_, found) = best.expect("a start");

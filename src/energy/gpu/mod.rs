@@ -28,8 +28,10 @@ use readback::ReadbackTarget;
 
 use super::lens::Lens;
 use super::raster::{self, Rect};
-use super::{Counts, Energy, EnergyEngine, Region, Scene, counts_with_outside, mask_totals};
-use crate::capture::{Arch, ArchPoses, FrameMasks};
+use super::{
+    Counts, Energy, EnergyEngine, MaskTotals, Region, Scene, counts_with_outside, frame_totals,
+};
+use crate::capture::{Arch, ArchPoses, FrameMasks, PerArch};
 use crate::error::Result;
 use crate::geometry::Camera;
 
@@ -57,7 +59,7 @@ pub struct GpuEnergy {
     masks_view: wgpu::TextureView,
     /// Per camera: the frame's mask totals per scored arch (upper, lower; see
     /// `mask_totals`), or `None` without a mask.
-    frame: Vec<Option<[[u64; 2]; 2]>>,
+    frame: Vec<Option<PerArch<MaskTotals>>>,
     batch: Mutex<Option<Batch>>,
 }
 
@@ -169,16 +171,16 @@ impl GpuEnergy {
 
     /// A camera's mask totals for the scored arch; the readback baseline, like the paper,
     /// sees only the arch's own mask, and counts the other arch's pixels as none.
-    fn totals(&self, frame: &[[u64; 2]; 2], arch: Arch) -> [u64; 2] {
-        let t = frame[(arch == Arch::Lower) as usize];
+    fn totals(&self, frame: &PerArch<MaskTotals>, arch: Arch) -> MaskTotals {
+        let t = *frame.get(arch);
         match self.counting {
             Counting::Histogram => t,
-            Counting::Readback => [t[0], 0],
+            Counting::Readback => MaskTotals { other: 0, ..t },
         }
     }
 
     fn mesh(&self, arch: Arch) -> &GpuMesh {
-        &self.meshes[(arch == Arch::Lower) as usize]
+        &self.meshes[arch.index()]
     }
 }
 
@@ -292,9 +294,7 @@ impl EnergyEngine for GpuEnergy {
 
     fn set_frame(&mut self, masks: &FrameMasks) -> Result<()> {
         for (layer, m) in masks.masks.iter().enumerate() {
-            self.frame[layer] = m
-                .as_ref()
-                .map(|m| [mask_totals(m, Arch::Upper), mask_totals(m, Arch::Lower)]);
+            self.frame[layer] = m.as_ref().map(frame_totals);
             let Some(m) = m else { continue };
             self.ctx.queue.write_texture(
                 wgpu::TexelCopyTextureInfo {
