@@ -168,16 +168,32 @@ fn mask_that_cannot_be_decoded() {
 }
 
 #[test]
-fn per_arch_masks_must_be_single_channel() {
-    let (_t, dir) = fresh_capture();
-    image::RgbImage::new(960, 540)
-        .save(dir.join("masks/cam0/000001.png"))
-        .unwrap();
-    let c = Capture::open(&dir).unwrap();
-    assert_mentions(
-        &c.load_masks(1).unwrap_err().to_string(),
-        &["000001.png", "single-channel"],
-    );
+fn per_arch_masks_must_be_single_channel_which_opening_checks_from_the_header() {
+    // `validate --quick` opens without decoding: the header's pixel format is checked there,
+    // so a capture that `validate --quick` passes has masks `track` can read.
+    for (name, image) in [
+        (
+            "rgb",
+            image::DynamicImage::ImageRgb8(image::RgbImage::new(960, 540)),
+        ),
+        (
+            "16-bit",
+            image::DynamicImage::ImageLuma16(image::ImageBuffer::new(960, 540)),
+        ),
+    ] {
+        let (_t, dir) = fresh_capture();
+        image.save(dir.join("masks/cam0/000001.png")).unwrap();
+        assert_mentions(
+            &error_of(&dir),
+            &["000001.png", "`pixel format`", "single-channel"],
+        );
+        let quick = std::process::Command::new(env!("CARGO_BIN_EXE_jawtrack"))
+            .args(["validate", "--quick"])
+            .arg(&dir)
+            .output()
+            .unwrap();
+        assert!(!quick.status.success(), "{name}: validate --quick passed");
+    }
 }
 
 fn write_mesh(dir: &Path, text: &str) {

@@ -175,11 +175,22 @@ fn jaw_pose_files_round_trip_and_bad_ones_are_named() {
     let e = write(
         "c.json",
         &format!(
-            r#"{{"frames": [{{"frame": 0, "upper": {pose}, "lower": {pose}, "status": "lost"}}]}}"#
+            r#"{{"frames": [{{"frame": 0, "upper": {pose}, "lower": {pose}, "status": "no-data"}}]}}"#
         ),
     );
     assert!(
         e.contains("no usable jaw poses") && e.contains("1 frames skipped"),
+        "{e}"
+    );
+    // A status the spec does not have is named, not taken for `ok`.
+    let e = write(
+        "c2.json",
+        &format!(
+            r#"{{"frames": [{{"frame": 0, "upper": {pose}, "lower": {pose}, "status": "lost"}}]}}"#
+        ),
+    );
+    assert!(
+        e.contains("frames[0].status") && e.contains("lost") && e.contains("low-confidence"),
         "{e}"
     );
     let e = write("d.json", r#"{"frames": [{"frame": 0, "upper": 3}]}"#);

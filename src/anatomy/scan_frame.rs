@@ -84,3 +84,53 @@ pub fn rotated(mesh: &Mesh, r: &Rotation3<f64>) -> Mesh {
         boi: mesh.boi.clone(),
     }
 }
+
+/// Below this ratio of surface areas the two ends of an arch's thin axis are told apart.
+const BITE_SIDE_RATIO: f64 = 0.85;
+
+/// The direction an arch's crowns point (model frame), from its shape alone: along its
+/// thinnest axis, towards the end whose outer fifth of the height holds less surface (the
+/// tapering crown tips, against a scan's gums and base or a crown's cervical end). `None`
+/// when the two ends differ by less than 15%.
+pub fn occlusal_direction(mesh: &Mesh) -> Option<Vector3<f64>> {
+    let (mean, axes) = mesh.principal_axes();
+    let axis = axes[0];
+    let height = |p: &Vector3<f64>| (p - mean).dot(&axis);
+    let (lo, hi) = mesh
+        .points()
+        .map(|p| height(&p))
+        .fold((f64::INFINITY, f64::NEG_INFINITY), |(a, b), h| {
+            (a.min(h), b.max(h))
+        });
+    if hi <= lo || !hi.is_finite() {
+        return None;
+    }
+    let band = (hi - lo) * 0.2;
+    let (mut below, mut above) = (0.0, 0.0);
+    for t in &mesh.triangles {
+        let [a, b, c] = t.map(|v| mesh.point(v as usize));
+        let area = (b - a).cross(&(c - a)).norm() * 0.5;
+        let h = height(&((a + b + c) / 3.0));
+        if h < lo + band {
+            below += area;
+        } else if h > hi - band {
+            above += area;
+        }
+    }
+    if above < BITE_SIDE_RATIO * below {
+        Some(axis)
+    } else if below < BITE_SIDE_RATIO * above {
+        Some(-axis)
+    } else {
+        None
+    }
+}
+
+/// The rotation from a single arch's model frame to the scan convention, with up told by the
+/// crowns' direction (upper crowns point down, lower crowns up). `None` when the shape does not
+/// tell the bite side (see [`occlusal_direction`]).
+pub fn single_arch_frame(mesh: &Mesh, upper: bool) -> Option<Rotation3<f64>> {
+    let occlusal = occlusal_direction(mesh)?;
+    let up = if upper { -occlusal } else { occlusal };
+    Some(scan_frame(mesh, &up))
+}

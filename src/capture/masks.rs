@@ -18,6 +18,18 @@ pub enum MaskMode {
     Combined,
 }
 
+impl std::fmt::Display for MaskMode {
+    /// In plain words, as `validate` and `synth` print it.
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        match self {
+            MaskMode::PerArch { upper, lower } => {
+                write!(f, "per arch (upper {upper}, lower {lower})")
+            }
+            MaskMode::Combined => write!(f, "combined (teeth at 128 or more)"),
+        }
+    }
+}
+
 impl MaskMode {
     pub fn label_of(&self, value: u8) -> u8 {
         match *self {
@@ -96,14 +108,29 @@ fn open_image(path: &Path) -> Result<image::ImageReader<std::io::BufReader<std::
         .map_err(|e| Error::read(path, "mask", e))
 }
 
-/// Read a mask PNG's size from its header only.
-pub fn mask_dimensions(path: &Path) -> Result<(u32, u32)> {
-    open_image(path)?
-        .into_dimensions()
-        .map_err(|e| Error::Image {
-            path: path.to_path_buf(),
-            problem: e.to_string(),
-        })
+/// Read a mask PNG's size from its header only, and check there that its pixel format is one
+/// [`decode_mask`] takes for `mode`.
+pub fn mask_header(path: &Path, mode: MaskMode) -> Result<(u32, u32)> {
+    use image::ImageDecoder;
+    let image_error = |e: image::ImageError| Error::Image {
+        path: path.to_path_buf(),
+        problem: e.to_string(),
+    };
+    let decoder = open_image(path)?.into_decoder().map_err(image_error)?;
+    let colour = decoder.color_type();
+    let single_channel = matches!(colour, image::ColorType::L8 | image::ColorType::La8);
+    if matches!(mode, MaskMode::PerArch { .. }) && !single_channel {
+        return Err(per_arch_format_error(path, colour));
+    }
+    Ok(decoder.dimensions())
+}
+
+fn per_arch_format_error(path: &Path, colour: image::ColorType) -> Error {
+    Error::invalid(
+        path,
+        "pixel format",
+        format!("per-arch masks must be 8-bit single-channel PNGs, found {colour:?}"),
+    )
 }
 
 /// Decode a mask PNG into labels. Per-arch masks must be 8-bit single-channel (labels are
@@ -119,14 +146,7 @@ pub fn decode_mask(path: &Path, mode: MaskMode) -> Result<LabelMask> {
         (image::DynamicImage::ImageLumaA8(g), _) => g.pixels().map(|p| p.0[0]).collect(),
         (other, MaskMode::Combined) => other.to_luma8().into_raw(),
         (other, MaskMode::PerArch { .. }) => {
-            return Err(Error::invalid(
-                path,
-                "pixel format",
-                format!(
-                    "per-arch masks must be 8-bit single-channel PNGs, found {:?}",
-                    other.color()
-                ),
-            ));
+            return Err(per_arch_format_error(path, other.color()));
         }
     };
     Ok(LabelMask {

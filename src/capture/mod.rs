@@ -302,7 +302,7 @@ impl Capture {
         let mask_dir = dir.join(&cj.masks.dir);
         for name in &cj.cameras {
             let calibrated = read_camera(&dir.join("cameras").join(format!("{name}.json")), name)?;
-            let (mask_size, frames_present) = scan_masks(&mask_dir.join(name))?;
+            let (mask_size, frames_present) = scan_masks(&mask_dir.join(name), mask_mode)?;
             let mask_size = mask_size
                 .map(|size| reduced_size(size, options.mask_reduce, &mask_dir.join(name)))
                 .transpose()?;
@@ -665,7 +665,7 @@ fn reduced_size((w, h): (u32, u32), k: u32, cam_dir: &Path) -> Result<(u32, u32)
     Ok((w / k, h / k))
 }
 
-fn scan_masks(cam_dir: &Path) -> Result<MaskScan> {
+fn scan_masks(cam_dir: &Path, mode: MaskMode) -> Result<MaskScan> {
     let mut frames = BTreeSet::new();
     let entries = match std::fs::read_dir(cam_dir) {
         Ok(e) => e,
@@ -686,7 +686,7 @@ fn scan_masks(cam_dir: &Path) -> Result<MaskScan> {
     let mut size: Option<((u32, u32), u32)> = None;
     for &f in &frames {
         let path = cam_dir.join(format!("{f:06}.png"));
-        let dims = masks::mask_dimensions(&path)?;
+        let dims = masks::mask_header(&path, mode)?;
         match size {
             None => size = Some((dims, f)),
             Some((s, f0)) if s != dims => {

@@ -277,9 +277,9 @@ fn adapt(a: AdaptArgs) -> anyhow::Result<()> {
     let rig = jawtrack::envelope::adapt::adapt(&source, &measured, &frame, &metric, a.mode.into())?;
     rig.save(&a.out)?;
     println!(
-        "adapted {} to the new subject ({:?}, five poses: {}) in {:.2} s: {}",
+        "adapted {} to the new subject ({} adaptation, five poses: {}) in {:.2} s: {}",
         a.envelope.display(),
-        a.mode,
+        crate::cli::args::name_of(&a.mode),
         EXTREMES.join(", "),
         rig.seconds,
         a.out.display()

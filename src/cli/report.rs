@@ -12,7 +12,7 @@ pub fn capture(c: &Capture) {
     println!("capture {}: valid", c.dir.display());
     let last = c.first_frame + c.frame_count - 1;
     println!(
-        "frames {}..={} ({}), masks {:?}",
+        "frames {}..={} ({}), masks {}",
         c.first_frame, last, c.frame_count, c.mask_mode
     );
     println!("camera  image      mask       masks found  distortion");

@@ -177,18 +177,23 @@ pub fn energy(a: EnergyArgs) -> anyhow::Result<()> {
             let got = engine.evaluate(Arch::Lower, &batch[..1])?[0].total(0.4);
             anyhow::ensure!(
                 (got - expected).abs() <= 5.0,
-                "{label} {region:?} energy {got} differs from the CPU reference's {expected}"
+                "{label} {} energy {got} differs from the CPU reference's {expected}",
+                region.name()
             );
         }
         for (label, region, engine) in &engines {
             for n in [1, a.batch] {
                 let s = time(engine.as_ref(), &batch[..n], a.seconds)?;
-                eprintln!("{name}: {label} {region:?} batch {n}: {:.3} ms", s * 1e3);
+                eprintln!(
+                    "{name}: {label} {} batch {n}: {:.3} ms",
+                    region.name(),
+                    s * 1e3
+                );
                 report.rows.push(Row {
                     mesh: name.clone(),
                     triangles,
                     backend: label.clone(),
-                    region: format!("{region:?}"),
+                    region: region.name().to_string(),
                     batch: n,
                     ms_per_evaluation: s * 1e3,
                     evaluations_per_second: 1.0 / s,
@@ -205,12 +210,12 @@ pub fn energy(a: EnergyArgs) -> anyhow::Result<()> {
             report.adapter.as_deref().unwrap_or("none")
         );
         println!(
-            "{:<22} {:>9} {:<9} {:<10} {:>5} {:>11} {:>10}",
+            "{:<22} {:>9} {:<9} {:<14} {:>5} {:>11} {:>10}",
             "mesh", "triangles", "backend", "region", "batch", "ms/eval", "evals/s"
         );
         for r in &report.rows {
             println!(
-                "{:<22} {:>9} {:<9} {:<10} {:>5} {:>11.3} {:>10.1}",
+                "{:<22} {:>9} {:<9} {:<14} {:>5} {:>11.3} {:>10.1}",
                 r.mesh,
                 r.triangles,
                 r.backend,
