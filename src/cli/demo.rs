@@ -93,7 +93,9 @@ pub fn run(a: Args) -> anyhow::Result<()> {
     // The error is measured on the mandible when the capture has one.
     let metric =
         jawtrack::anatomy::MeshMetric::new(reopened.mandible.as_ref().unwrap_or(&reopened.lower));
-    let rig = jawtrack::rig::JawRig::learn(&poses.poses, &metric, &Default::default())?;
+    let rig = super::run::with_spinner("learning the rig", || {
+        jawtrack::rig::JawRig::learn(&poses.poses, &metric, &Default::default())
+    })?;
     rig.save(&rig_path)?;
     let report = jawtrack::rig::eval::report(&rig, &poses.poses, &metric, 0, 0, false)?;
     let rec = &report.reconstruction;

@@ -43,7 +43,7 @@ pub fn capture(c: &Capture) {
     let describe = |name: &str, m: &jawtrack::capture::Mesh| {
         let (lo, hi) = m.bounds();
         println!(
-            "mesh {name}: {} vertices, {} triangles, {} BOI triangles, size {:.1} x {:.1} x {:.1} mm",
+            "mesh {name} as tracked (simplified at load): {} vertices, {} triangles, {} BOI triangles, size {:.1} x {:.1} x {:.1} mm",
             m.positions.len(),
             m.triangles.len(),
             m.boi_face_count(),
@@ -85,7 +85,7 @@ pub fn synth(out: &Path, r: &SynthReport) {
         r.seconds
     );
     println!(
-        "meshes: upper {} triangles ({} BOI), lower {} ({} BOI)",
+        "meshes as written: upper {} triangles ({} BOI), lower {} ({} BOI); reading simplifies them (validate prints what is tracked)",
         r.triangles[0], r.boi_triangles[0], r.triangles[1], r.boi_triangles[1]
     );
     println!(
@@ -160,14 +160,39 @@ pub fn rig_eval(r: &EvalReport) {
         "reconstruction error of {} poses: largest vertex distance on a mesh of {} vertices (mm)",
         r.poses, r.mesh_vertices
     );
-    println!("model            mean   median      p95      max");
+    let rec = &r.reconstruction;
+    let mut names: Vec<&str> = rec
+        .pca
+        .iter()
+        .chain(&rec.nlpca)
+        .map(|s| s.name.as_str())
+        .collect();
+    names.extend(
+        [&rec.pca3_plain, &rec.rig, &rec.rig_clamped, &rec.paper_rig].map(|s| s.name.as_str()),
+    );
+    if let Some(s) = &r.sampled {
+        names.extend([
+            s.dynamic_ranges.name.as_str(),
+            s.static_ranges.name.as_str(),
+        ]);
+    }
+    // One column width for every row's name, so that the numbers line up.
+    let width = names
+        .iter()
+        .map(|n| n.chars().count())
+        .max()
+        .unwrap_or(5)
+        .max(5);
+    println!(
+        "{:<width$} {:>6} {:>8} {:>8} {:>8}",
+        "model", "mean", "median", "p95", "max"
+    );
     let row = |s: &Series| {
         println!(
-            "{:<14} {:>6.3} {:>8.3} {:>8.3} {:>8.3}",
+            "{:<width$} {:>6.3} {:>8.3} {:>8.3} {:>8.3}",
             s.name, s.stats.mean, s.stats.median, s.stats.p95, s.stats.max
         )
     };
-    let rec = &r.reconstruction;
     rec.pca.iter().for_each(row);
     row(&rec.pca3_plain);
     rec.nlpca.iter().for_each(row);

@@ -50,3 +50,18 @@ pub fn track(capture: &Capture, options: SessionOptions) -> anyhow::Result<Summa
     bar.finish_and_clear();
     Ok(summary)
 }
+
+/// Run `step` with a spinner and the elapsed time on stderr: for long steps that cannot say how
+/// far they are (learning a rig).
+pub fn with_spinner<T>(what: &str, step: impl FnOnce() -> T) -> T {
+    let bar = indicatif::ProgressBar::new_spinner();
+    bar.set_style(
+        indicatif::ProgressStyle::with_template("{spinner} {msg} ({elapsed})")
+            .expect("a valid template"),
+    );
+    bar.set_message(what.to_string());
+    bar.enable_steady_tick(std::time::Duration::from_millis(200));
+    let out = step();
+    bar.finish_and_clear();
+    out
+}

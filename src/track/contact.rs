@@ -1,8 +1,8 @@
 //! The arches cannot pass through each other. When the mouth closes, a lower arch turned a
 //! few degrees too far hides its incisors behind the upper ones and fits the masks about as
-//! well as the true pose (measured on a lateral excursion: the lost jaw reached 3-5 mm into
-//! the upper arch while the true poses never passed 0.7 mm), so the search adds a penalty
-//! for jaw poses that put the lower crowns into the upper ones.
+//! well as the true pose while reaching millimetres into the upper arch, which a true pose
+//! never does (docs/tracking.md), so the search adds a penalty for jaw poses that put the
+//! lower crowns into the upper ones.
 //!
 //! The test is a height map: along the occlusal axis (the upper arch's thinnest direction,
 //! pointing away from the lower arch), the lowest point of the upper arch in each 0.5 mm

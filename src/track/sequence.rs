@@ -215,9 +215,8 @@ pub fn track_frames(
     on_frame: &mut dyn FnMut(&FrameResult, &FrameMasks) -> Result<()>,
 ) -> Result<()> {
     let centres = [centre(capture, Arch::Upper), centre(capture, Arch::Lower)];
-    // Both mask modes: with combined masks a lower-arch candidate used to win by covering the
-    // upper arch's pixels (jaw median 5.98 → 7.13 mm), which the contact penalty now forbids
-    // (measured with it: 5.17 → 1.68 mm, `bench track --masks combined --seeds 6 --frames 48`).
+    // The prior serves both mask modes: with combined masks a lower-arch start could win by
+    // covering the upper arch's pixels, which the contact penalty forbids (docs/tracking.md).
     // Which side of each arch the other is on comes from the poses tracking starts from.
     let prior = JawPrior::new(
         &capture.upper,

@@ -82,7 +82,9 @@ pub fn rig(a: RigArgs) -> anyhow::Result<()> {
     settings.network.seed = a.seed;
     settings.mode.seed = a.seed;
     settings.modes.seed = a.seed;
-    let rig = JawRig::learn(&poses.poses, &metric, &settings)?;
+    let rig = crate::cli::run::with_spinner("learning the rig", || {
+        JawRig::learn(&poses.poses, &metric, &settings)
+    })?;
     let (ik_ms, ik_residual) = time_ik(&rig, &metric, a.ik_queries, a.seed);
     let eval = jawtrack::rig::eval::report(&rig, &poses.poses, &metric, a.samples, a.seed, true)?;
     if let Some(p) = &a.plots {

@@ -98,7 +98,9 @@ pub fn learn(a: LearnArgs) -> anyhow::Result<()> {
     settings.mode.seed = a.seed;
     settings.modes.seed = a.seed;
     settings.validate(std::path::Path::new("--alpha"))?;
-    let rig = JawRig::learn(&poses.poses, &metric, &settings)?;
+    let rig = crate::cli::run::with_spinner("learning the rig", || {
+        JawRig::learn(&poses.poses, &metric, &settings)
+    })?;
     rig.save(&a.out)?;
     let summary = LearnSummary {
         rig: a.out.display().to_string(),
@@ -163,8 +165,9 @@ pub fn evaluate(a: EvalArgs) -> anyhow::Result<()> {
     let rig = JawRig::load(&a.rig)?;
     let (poses, _) = load_poses(&a.input)?;
     let (_, metric) = load_mesh(&a.mesh)?;
-    let report =
-        jawtrack::rig::eval::report(&rig, &poses.poses, &metric, a.samples, a.seed, !a.no_nlpca6)?;
+    let report = crate::cli::run::with_spinner("evaluating the rig", || {
+        jawtrack::rig::eval::report(&rig, &poses.poses, &metric, a.samples, a.seed, !a.no_nlpca6)
+    })?;
     if let Some(dir) = &a.plots {
         jawtrack::rig::plot::write_figures(dir, &report.reconstruction, report.sampled.as_ref())
             .with_context(|| format!("writing the figures to {}", dir.display()))?;
