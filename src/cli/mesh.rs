@@ -1,7 +1,6 @@
 use std::path::PathBuf;
 
 use anyhow::{Context, bail};
-use jawtrack::anatomy::scan_frame::{rotated, single_arch_frame};
 use jawtrack::capture::mesh::{BoiMarking, mark_boi, write_obj};
 use jawtrack::capture::{BoiSource, Mesh};
 
@@ -65,23 +64,13 @@ fn boi(a: BoiArgs) -> anyhow::Result<()> {
     if let Some(f) = a.front_fraction {
         marking.front_fraction = f;
     }
-    // The marking works in the scan convention (y up, +z anterior): a scan in another frame
-    // is marked turned into it; the faces keep their order, so the marks carry back.
-    let Some(frame) = single_arch_frame(&mesh, upper) else {
-        bail!(
-            "{}: cannot tell which side the crowns point to (the two ends of the arch's thinnest axis hold about the same surface); write the scan in the scan frame (y up, +z anterior) or mark the boundary of interest as an OBJ group",
-            a.input.display()
-        );
-    };
-    let mut turned = rotated(&mesh, &frame);
-    let n = mark_boi(&mut turned, &marking);
+    let n = mark_boi(&mut mesh, &marking);
     if n == 0 {
         bail!(
-            "{}: no face was marked: the arch's front teeth were not found",
+            "{}: no face was marked; is the mesh in the scan frame (y up, +z anterior)?",
             a.input.display()
         );
     }
-    mesh.boi = turned.boi;
     if let Some(max) = a.max_triangles {
         mesh = mesh.simplified(jawtrack::capture::Simplify::MaxTriangles(max));
     }
