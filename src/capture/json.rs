@@ -173,8 +173,6 @@ pub enum Status {
 }
 
 impl Status {
-    pub const ALL: [Status; 3] = [Status::Ok, Status::LowConfidence, Status::NoData];
-
     /// The spec's spelling.
     pub fn as_str(self) -> &'static str {
         match self {

@@ -1,6 +1,8 @@
 //! Reading and validating a capture (../shared/spec/capture-format.md): cameras, meshes with
 //! their boundary of interest, masks read frame by frame, init.json and ground truth.
 
+mod arch;
+mod camera;
 pub mod json;
 pub mod masks;
 pub mod mesh;
@@ -13,103 +15,12 @@ use nalgebra::Vector2;
 
 use crate::error::{Error, Result};
 use crate::geometry::{Camera, Pose, fit_rigid, triangulate};
-use json::{
-    ArchInitJson, BoiJson, CameraJson, CaptureJson, InitJson, TracksJson, check_finite, read_json,
-};
+pub use arch::{Arch, ArchPoses, PerArch};
+pub use camera::{camera_from_json, read_camera};
+use json::{ArchInitJson, BoiJson, CaptureJson, InitJson, TracksJson, check_finite, read_json};
 pub use masks::{LOWER_BIT, LabelMask, MaskMode, UPPER_BIT};
 pub use mesh::{BoiSource, Mesh, Simplify};
 pub use write::{write_atomic, write_json_atomic};
-
-/// The two arches.
-#[derive(Debug, Clone, Copy, PartialEq, Eq, Hash)]
-pub enum Arch {
-    Upper,
-    Lower,
-}
-
-impl Arch {
-    pub const BOTH: [Arch; 2] = [Arch::Upper, Arch::Lower];
-    pub fn name(self) -> &'static str {
-        match self {
-            Arch::Upper => "upper",
-            Arch::Lower => "lower",
-        }
-    }
-    pub fn mask_bit(self) -> u8 {
-        match self {
-            Arch::Upper => UPPER_BIT,
-            Arch::Lower => LOWER_BIT,
-        }
-    }
-    pub fn other(self) -> Arch {
-        match self {
-            Arch::Upper => Arch::Lower,
-            Arch::Lower => Arch::Upper,
-        }
-    }
-    /// 0 for the upper arch, 1 for the lower: the order of [`Arch::BOTH`] and of
-    /// [`PerArch::to_array`].
-    pub fn index(self) -> usize {
-        match self {
-            Arch::Upper => 0,
-            Arch::Lower => 1,
-        }
-    }
-}
-
-/// One value per arch.
-#[derive(Debug, Clone, Copy, Default, PartialEq, Eq)]
-pub struct PerArch<T> {
-    pub upper: T,
-    pub lower: T,
-}
-
-impl<T> PerArch<T> {
-    /// The value of each arch from `f`.
-    pub fn from_fn(mut f: impl FnMut(Arch) -> T) -> PerArch<T> {
-        PerArch {
-            upper: f(Arch::Upper),
-            lower: f(Arch::Lower),
-        }
-    }
-    pub fn get(&self, arch: Arch) -> &T {
-        match arch {
-            Arch::Upper => &self.upper,
-            Arch::Lower => &self.lower,
-        }
-    }
-    /// Upper, lower.
-    pub fn to_array(self) -> [T; 2] {
-        [self.upper, self.lower]
-    }
-}
-
-/// Both arches' poses in the world (`world_from_upper`, `world_from_lower`).
-#[derive(Debug, Clone, Copy, PartialEq, Default)]
-pub struct ArchPoses {
-    pub upper: Pose,
-    pub lower: Pose,
-}
-
-impl ArchPoses {
-    pub fn get(&self, arch: Arch) -> &Pose {
-        match arch {
-            Arch::Upper => &self.upper,
-            Arch::Lower => &self.lower,
-        }
-    }
-    pub fn with(mut self, arch: Arch, pose: Pose) -> Self {
-        match arch {
-            Arch::Upper => self.upper = pose,
-            Arch::Lower => self.lower = pose,
-        }
-        self
-    }
-    /// The jaw pose, `upper_from_lower` (Eq. 1-3).
-    pub fn jaw(&self) -> Pose {
-        crate::geometry::jaw_pose(&self.upper, &self.lower)
-    }
-}
 
 /// A camera of the capture with what was found of its masks.
 #[derive(Debug)]
@@ -568,79 +479,6 @@ impl Capture {
 enum BoiRef {
     Group(String),
     List(PathBuf),
-}
-
-/// Read a cameras/<name>.json file and validate every field.
-pub fn read_camera(path: &Path, name: &str) -> Result<Camera> {
-    let cj: CameraJson = read_json(path, &format!("camera file for `{name}`"))?;
-    camera_from_json(&cj, path, name)
-}
-
-/// Validate a camera document (`path` names it in errors) and build the camera.
-pub fn camera_from_json(cj: &CameraJson, path: &Path, name: &str) -> Result<Camera> {
-    if cj.width <= 0 || cj.height <= 0 || cj.width > 1 << 16 || cj.height > 1 << 16 {
-        return Err(Error::invalid(
-            path,
-            "width/height",
-            format!("image size {}x{} is not valid", cj.width, cj.height),
-        ));
-    }
-    for (field, v) in [("fx", cj.fx), ("fy", cj.fy), ("cx", cj.cx), ("cy", cj.cy)] {
-        check_finite(path, field, &[v])?;
-    }
-    for (field, v) in [("fx", cj.fx), ("fy", cj.fy)] {
-        if v <= 0.0 {
-            return Err(Error::invalid(
-                path,
-                field,
-                format!("the focal length must be positive, found {v}"),
-            ));
-        }
-    }
-    let mut distortion = [0.0; 5];
-    if let Some(d) = &cj.distortion {
-        check_finite(path, "distortion", d)?;
-        if !(d.len() == 4 || d.len() == 5) {
-            return Err(Error::invalid(
-                path,
-                "distortion",
-                format!(
-                    "expected [k1, k2, p1, p2] or [k1, k2, p1, p2, k3], found {} values",
-                    d.len()
-                ),
-            ));
-        }
-        distortion[..d.len()].copy_from_slice(d);
-    }
-    let pose = json::PoseJson {
-        rotation: cj.rotation,
-        translation: cj.translation,
-    }
-    .to_pose(path, "extrinsics")
-    .map_err(|e| match e {
-        // The camera file keeps rotation/translation at the top level.
-        Error::Invalid {
-            path,
-            field,
-            problem,
-        } => Error::Invalid {
-            path,
-            field: field.trim_start_matches("extrinsics.").to_string(),
-            problem,
-        },
-        other => other,
-    })?;
-    Ok(Camera {
-        name: name.to_string(),
-        width: cj.width as u32,
-        height: cj.height as u32,
-        fx: cj.fx,
-        fy: cj.fy,
-        cx: cj.cx,
-        cy: cj.cy,
-        distortion,
-        camera_from_world: pose,
-    })
 }
 
 /// List a camera's mask files and check that they share one size (headers only).

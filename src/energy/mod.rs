@@ -13,6 +13,7 @@ pub mod histogram;
 pub mod lens;
 pub mod raster;
 pub mod relevance;
+pub mod target;
 
 use crate::capture::{Arch, ArchPoses, Capture, FrameMasks, MaskMode, Mesh, PerArch};
 use crate::error::Result;

@@ -9,6 +9,7 @@ pub mod ik;
 pub mod input;
 mod lbfgs;
 pub mod model;
+mod network;
 pub mod nlpca;
 pub mod plot;
 pub mod ranges;

@@ -49,9 +49,9 @@ pub struct GpuEnergy {
     ctx: GpuContext,
     scene: Scene,
     region: Region,
-    counting: Counting,
     meshes: [GpuMesh; 2],
     pipelines: Pipelines,
+    /// The paper's colour target when this is the readback baseline; `None`: the histogram.
     readback: Option<ReadbackTarget>,
     class_view: wgpu::TextureView,
     depth_view: wgpu::TextureView,
@@ -149,7 +149,6 @@ impl GpuEnergy {
             GpuMesh::new(device, &scene.lower, "lower"),
         ];
         Ok(GpuEnergy {
-            counting,
             readback,
             frame: vec![None; scene.cameras.len()],
             class_view: class.create_view(&Default::default()),
@@ -173,9 +172,9 @@ impl GpuEnergy {
     /// sees only the arch's own mask, and counts the other arch's pixels as none.
     fn totals(&self, frame: &PerArch<MaskTotals>, arch: Arch) -> MaskTotals {
         let t = *frame.get(arch);
-        match self.counting {
-            Counting::Histogram => t,
-            Counting::Readback => MaskTotals { other: 0, ..t },
+        match self.readback {
+            None => t,
+            Some(_) => MaskTotals { other: 0, ..t },
         }
     }
 
@@ -280,9 +279,9 @@ impl GpuEnergy {
             .collect();
         let placement = atlas::pack(&sizes, PAGE, MAX_TILES_PER_PAGE);
         let draws = self.draw_records(arch, candidates, tiles, &placement);
-        match self.counting {
-            Counting::Histogram => self.count_histogram(arch, tiles, &placement, &draws),
-            Counting::Readback => self.count_readback(tiles, &placement, &draws),
+        match &self.readback {
+            None => self.count_histogram(arch, tiles, &placement, &draws),
+            Some(target) => self.count_readback(target, tiles, &placement, &draws),
         }
     }
 }

@@ -88,14 +88,11 @@ impl GpuEnergy {
     /// CPU whole, classify its pixels' colours on one thread.
     pub(super) fn count_readback(
         &self,
+        target: &ReadbackTarget,
         tiles: &[Tile],
         placement: &[atlas::Placement],
         draws: &[DrawRecord],
     ) -> Result<Vec<[u64; 9]>, GpuError> {
-        let target = self
-            .readback
-            .as_ref()
-            .expect("a readback engine has its colour target");
         let n_pages = placement.last().map_or(0, |p| p.page + 1);
         let row_bytes = |w: u32| (w * 4).next_multiple_of(wgpu::COPY_BYTES_PER_ROW_ALIGNMENT);
         let mut guard = self.batch.lock().unwrap_or_else(|e| e.into_inner());

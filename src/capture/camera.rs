@@ -1,0 +1,80 @@
+//! A camera file (cameras/<name>.json): every field checked, the camera built.
+
+use std::path::Path;
+
+use super::json::{self, CameraJson, check_finite, read_json};
+use crate::error::{Error, Result};
+use crate::geometry::Camera;
+
+/// Read a cameras/<name>.json file and validate every field.
+pub fn read_camera(path: &Path, name: &str) -> Result<Camera> {
+    let cj: CameraJson = read_json(path, &format!("camera file for `{name}`"))?;
+    camera_from_json(&cj, path, name)
+}
+
+/// Validate a camera document (`path` names it in errors) and build the camera.
+pub fn camera_from_json(cj: &CameraJson, path: &Path, name: &str) -> Result<Camera> {
+    if cj.width <= 0 || cj.height <= 0 || cj.width > 1 << 16 || cj.height > 1 << 16 {
+        return Err(Error::invalid(
+            path,
+            "width/height",
+            format!("image size {}x{} is not valid", cj.width, cj.height),
+        ));
+    }
+    for (field, v) in [("fx", cj.fx), ("fy", cj.fy), ("cx", cj.cx), ("cy", cj.cy)] {
+        check_finite(path, field, &[v])?;
+    }
+    for (field, v) in [("fx", cj.fx), ("fy", cj.fy)] {
+        if v <= 0.0 {
+            return Err(Error::invalid(
+                path,
+                field,
+                format!("the focal length must be positive, found {v}"),
+            ));
+        }
+    }
+    let mut distortion = [0.0; 5];
+    if let Some(d) = &cj.distortion {
+        check_finite(path, "distortion", d)?;
+        if !(d.len() == 4 || d.len() == 5) {
+            return Err(Error::invalid(
+                path,
+                "distortion",
+                format!(
+                    "expected [k1, k2, p1, p2] or [k1, k2, p1, p2, k3], found {} values",
+                    d.len()
+                ),
+            ));
+        }
+        distortion[..d.len()].copy_from_slice(d);
+    }
+    let pose = json::PoseJson {
+        rotation: cj.rotation,
+        translation: cj.translation,
+    }
+    .to_pose(path, "extrinsics")
+    .map_err(|e| match e {
+        // The camera file keeps rotation/translation at the top level.
+        Error::Invalid {
+            path,
+            field,
+            problem,
+        } => Error::Invalid {
+            path,
+            field: field.trim_start_matches("extrinsics.").to_string(),
+            problem,
+        },
+        other => other,
+    })?;
+    Ok(Camera {
+        name: name.to_string(),
+        width: cj.width as u32,
+        height: cj.height as u32,
+        fx: cj.fx,
+        fy: cj.fy,
+        cx: cj.cx,
+        cy: cj.cy,
+        distortion,
+        camera_from_world: pose,
+    })
+}

@@ -1,0 +1,191 @@
+//! Writing a synthetic capture's files in the capture format: capture.json, cameras, meshes,
+//! masks, init.json and ground truth.
+
+use std::path::Path;
+use std::time::Instant;
+
+use rand::SeedableRng;
+use rand_chacha::ChaCha8Rng;
+use rayon::prelude::*;
+
+use crate::capture::json::{
+    ArchInitJson, BoiJson, CameraJson, CaptureJson, FrameRecordJson, FramesJson, InitJson,
+    MasksJson, MeshesJson, TracksJson,
+};
+use crate::capture::mesh::write_obj;
+use crate::capture::{ArchPoses, write_atomic, write_json_atomic};
+use crate::error::Result;
+
+use super::{
+    CameraStats, LOWER_LABEL, MaskKind, Session, SynthOptions, SynthReport, UPPER_LABEL,
+    render_mask,
+};
+
+pub(super) fn write_capture(
+    dir: &Path,
+    s: &Session,
+    opts: &SynthOptions,
+    progress: &(dyn Fn() + Sync),
+    started: Instant,
+) -> Result<SynthReport> {
+    let names: Vec<String> = s.cameras.iter().map(|(c, _)| c.name.clone()).collect();
+    let capture = CaptureJson {
+        format: crate::capture::json::CAPTURE_FORMAT.into(),
+        cameras: names.clone(),
+        frames: FramesJson {
+            first: 0,
+            count: opts.frames,
+        },
+        meshes: MeshesJson {
+            upper: "meshes/upper.obj".into(),
+            lower: "meshes/lower.obj".into(),
+            mandible: Some("meshes/mandible.obj".into()),
+        },
+        boi: BoiJson::Group {
+            group: "boi".into(),
+        },
+        masks: match opts.masks {
+            MaskKind::PerArch => MasksJson {
+                dir: "masks".into(),
+                mode: "per-arch".into(),
+                upper: Some(UPPER_LABEL as i64),
+                lower: Some(LOWER_LABEL as i64),
+            },
+            MaskKind::Combined => MasksJson {
+                dir: "masks".into(),
+                mode: "combined".into(),
+                upper: None,
+                lower: None,
+            },
+        },
+    };
+    write_json_atomic(&dir.join("capture.json"), &capture)?;
+    for (cam, json) in &s.cameras {
+        let path = dir.join("cameras").join(format!("{}.json", cam.name));
+        match opts.distortion {
+            None => write_atomic(&path, json.as_bytes())?,
+            Some(d) => {
+                let mut cj: CameraJson =
+                    serde_json::from_str(json).expect("read as a camera file before");
+                cj.distortion = Some(d.to_vec());
+                write_json_atomic(&path, &cj)?;
+            }
+        }
+    }
+    write_obj(&s.upper, &dir.join("meshes/upper.obj"))?;
+    write_obj(&s.lower, &dir.join("meshes/lower.obj"))?;
+    write_obj(&s.mandible, &dir.join("meshes/mandible.obj"))?;
+
+    let frames: Vec<_> = (0..opts.frames)
+        .into_par_iter()
+        .map(|index| -> Result<_> {
+            let controls = s.controls(index, opts);
+            let upper = s.world_from_upper(index);
+            let jaw = s.jaw.jaw_pose(&controls);
+            let poses = ArchPoses {
+                upper,
+                lower: upper.compose(&jaw),
+            };
+            let show = s.lip_show(index, opts);
+            let mut stats = Vec::with_capacity(s.mask_cameras.len());
+            for (c, cam) in s.mask_cameras.iter().enumerate() {
+                if opts.no_masks {
+                    break;
+                }
+                let mut rng = ChaCha8Rng::seed_from_u64(
+                    opts.seed
+                        ^ ((index as u64) << 8 | c as u64).wrapping_mul(0x9E37_79B9_7F4A_7C15),
+                );
+                let m = render_mask(s, cam, &poses, show, opts, &mut rng);
+                if let Some(png) = &m.png {
+                    write_atomic(
+                        &dir.join("masks")
+                            .join(&cam.name)
+                            .join(format!("{index:06}.png")),
+                        png,
+                    )?;
+                }
+                stats.push(m);
+            }
+            progress();
+            Ok((index, poses, controls, stats))
+        })
+        .collect::<Result<_>>()?;
+
+    let records: Vec<FrameRecordJson> = frames
+        .iter()
+        .map(|(index, poses, _, _)| FrameRecordJson {
+            frame: *index,
+            upper: (&poses.upper).into(),
+            lower: (&poses.lower).into(),
+            jaw: Some((&poses.jaw()).into()),
+            energy: None,
+            area_error: None,
+            status: None,
+        })
+        .collect();
+    write_json_atomic(
+        &dir.join("gt/poses.json"),
+        &TracksJson {
+            format: crate::capture::json::TRACKS_FORMAT.into(),
+            frames: records,
+        },
+    )?;
+    let first = &frames[0].1;
+    write_json_atomic(
+        &dir.join("init.json"),
+        &InitJson {
+            upper: ArchInitJson::Pose((&first.upper).into()),
+            lower: ArchInitJson::Pose((&first.lower).into()),
+        },
+    )?;
+
+    let rest_incisor = s.jaw.rest.transform_point(&s.lower_incisor);
+    let mut report = SynthReport {
+        frames: opts.frames,
+        triangles: [s.upper.triangles.len(), s.lower.triangles.len()],
+        boi_triangles: [s.upper.boi_face_count(), s.lower.boi_face_count()],
+        cameras: Vec::new(),
+        max_opening_mm: 0.0,
+        lateral_mm: [0.0, 0.0],
+        max_protrusion_mm: 0.0,
+        max_condylar_travel_mm: 0.0,
+        seconds: 0.0,
+    };
+    for (_, poses, controls, _) in &frames {
+        let d = poses.jaw().transform_point(&s.lower_incisor) - rest_incisor;
+        report.max_opening_mm = report.max_opening_mm.max(-d.y);
+        report.lateral_mm = [report.lateral_mm[0].min(d.x), report.lateral_mm[1].max(d.x)];
+        report.max_protrusion_mm = report.max_protrusion_mm.max(d.z);
+        let (sl, sr, _) = s.jaw.joint_state(controls);
+        report.max_condylar_travel_mm = report.max_condylar_travel_mm.max(sl.max(sr));
+    }
+    for (c, cam) in s.mask_cameras.iter().enumerate() {
+        let mut with_mask = 0;
+        let mut mask = [0u64; 2];
+        let mut alone = [0u64; 2];
+        for (_, _, _, stats) in &frames {
+            let Some(m) = stats.get(c) else { continue };
+            with_mask += m.png.is_some() as u32;
+            for k in 0..2 {
+                mask[k] += m.mask_pixels[k];
+                alone[k] += m.alone_pixels[k];
+            }
+        }
+        report.cameras.push(CameraStats {
+            name: cam.name.clone(),
+            mask_size: [cam.width, cam.height],
+            frames_with_mask: with_mask,
+            mean_mask_pixels: mask.map(|m| m as f64 / opts.frames as f64),
+            visible_share: [0, 1].map(|k| {
+                if alone[k] == 0 {
+                    0.0
+                } else {
+                    mask[k] as f64 / alone[k] as f64
+                }
+            }),
+        });
+    }
+    report.seconds = started.elapsed().as_secs_f64();
+    Ok(report)
+}
