@@ -1,6 +1,7 @@
 use std::path::PathBuf;
 
 use anyhow::{Context, bail};
+use jawtrack::anatomy::scan_frame::scan_frame;
 use jawtrack::capture::mesh::{BoiMarking, mark_boi, write_obj};
 use jawtrack::capture::{BoiSource, Mesh};
 
@@ -63,6 +64,24 @@ fn boi(a: BoiArgs) -> anyhow::Result<()> {
     }
     if let Some(f) = a.front_fraction {
         marking.front_fraction = f;
+    }
+    // The marking works in the scan frame; a scan written in another is refused rather than
+    // marked in the wrong place.
+    let found = scan_frame(&mesh, &nalgebra::Vector3::y());
+    if found != nalgebra::Rotation3::identity() {
+        let names = ["x", "y", "z"];
+        let line = |v: nalgebra::Vector3<f64>| names[v.iamax()];
+        let axis = |v: nalgebra::Vector3<f64>| {
+            let k = v.iamax();
+            format!("{}{}", if v[k] < 0.0 { "-" } else { "+" }, names[k])
+        };
+        let rows = found.matrix();
+        bail!(
+            "{}: not in the scan frame (y up, +z anterior): the arch's thinnest axis lies along {} and its front towards {}; turn the scan into the scan frame, or mark the boundary of interest as an OBJ group",
+            a.input.display(),
+            line(rows.row(1).transpose()),
+            axis(rows.row(2).transpose())
+        );
     }
     let n = mark_boi(&mut mesh, &marking);
     if n == 0 {
