@@ -303,6 +303,23 @@ fn bad_mask_labels() {
     assert_mentions(&error_of(&dir), &["`masks.mode`", "\"rgb\""]);
 }
 
+/// Found by hostile input: an init.json translation of 1e308 (finite, so it passed) hung
+/// tracking in `Pose::compose` (bf99878).
+#[test]
+fn a_pose_translation_beyond_a_kilometre_is_refused() {
+    for value in [1e308, -2e6] {
+        let (_t, dir) = fresh_capture();
+        edit_json(&dir.join("init.json"), |v| {
+            v["upper"]["translation"][0] = value.into()
+        });
+        let e = error_of(&dir);
+        assert!(
+            e.contains("init.json") && e.contains("translation") && e.contains("1 km"),
+            "{value}: {e}"
+        );
+    }
+}
+
 #[test]
 fn bootstrap_points_are_checked() {
     let (_t, dir) = fresh_capture();

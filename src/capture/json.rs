@@ -87,11 +87,28 @@ impl From<&Pose> for PoseJson {
     }
 }
 
+/// The largest translation a pose file may give (mm): a kilometre, far beyond any capture, and
+/// far enough below f64's range that composing poses stays finite.
+pub const MAX_TRANSLATION_MM: f64 = 1e6;
+
 impl PoseJson {
     /// Validate (finite numbers, a rotation within the spec's tolerance) and re-orthonormalise.
     pub fn to_pose(&self, path: &Path, field: &str) -> Result<Pose> {
         check_finite_rows(path, &format!("{field}.rotation"), &self.rotation)?;
         check_finite(path, &format!("{field}.translation"), &self.translation)?;
+        if let Some(t) = self
+            .translation
+            .iter()
+            .find(|t| t.abs() > MAX_TRANSLATION_MM)
+        {
+            return Err(Error::invalid(
+                path,
+                format!("{field}.translation"),
+                format!(
+                    "{t} mm is beyond {MAX_TRANSLATION_MM} mm (1 km): not a pose in millimetres"
+                ),
+            ));
+        }
         let rotation = Pose::rotation_from_rows(&self.rotation, ROTATION_TOLERANCE).ok_or_else(|| {
             Error::invalid(
                 path,

@@ -130,10 +130,14 @@ impl Pose {
     }
 
     /// `self ∘ other`: apply `other` first. The product is re-orthonormalised: a tracker
-    /// composes poses frame after frame, and unchecked rounding would compound.
+    /// composes poses frame after frame, and unchecked rounding would compound. A product that
+    /// is not finite is left as it is: nalgebra's re-orthonormalisation iterates until it
+    /// converges, which a NaN never does.
     pub fn compose(&self, other: &Pose) -> Pose {
         let mut rotation = self.rotation * other.rotation;
-        rotation.renormalize();
+        if rotation.matrix().iter().all(|v| v.is_finite()) {
+            rotation.renormalize();
+        }
         Pose::new(
             rotation,
             self.rotation * other.translation + self.translation,
@@ -249,6 +253,20 @@ pub fn jaw_pose(world_from_upper: &Pose, world_from_lower: &Pose) -> Pose {
 mod tests {
     use super::*;
     use crate::geometry::lie_suite::{LieGroup, group_axiom_suite};
+
+    /// Found by hostile input: any non-finite pose reaching `compose` looped for ever in
+    /// nalgebra's re-orthonormalisation (bf99878).
+    #[test]
+    fn composing_a_non_finite_pose_returns() {
+        let bad = Pose::new(
+            Rotation3::from_matrix_unchecked(Matrix3::from_element(f64::NAN)),
+            Vector3::new(f64::INFINITY, 0.0, 0.0),
+        );
+        let p = bad.compose(&Pose::IDENTITY);
+        assert!(p.rotation.matrix()[(0, 0)].is_nan());
+        let q = Pose::IDENTITY.compose(&bad);
+        assert!(!q.translation.x.is_finite());
+    }
 
     impl LieGroup for Pose {
         type Tangent = Vector6<f64>;
