@@ -369,3 +369,41 @@ fn the_cli_reports_errors_and_exits_non_zero() {
         "{err}"
     );
 }
+
+/// Found by hostile input: `track -o /dev/full --force` replaced the device node with an
+/// ordinary file (bf99878). A pipe stands in for the device here; it must stay a pipe.
+#[cfg(unix)]
+#[test]
+fn track_refuses_to_replace_an_output_that_is_not_a_regular_file() {
+    use std::os::unix::fs::FileTypeExt;
+    let (t, dir) = fresh_capture();
+    let pipe = t.path().join("tracks.json");
+    let made = std::process::Command::new("mkfifo")
+        .arg(&pipe)
+        .status()
+        .unwrap();
+    assert!(made.success());
+    let out = std::process::Command::new(env!("CARGO_BIN_EXE_jawtrack"))
+        .args(["track", "--force", "--frames", "0..1", "-o"])
+        .arg(&pipe)
+        .arg(&dir)
+        .output()
+        .unwrap();
+    let err = String::from_utf8_lossy(&out.stderr);
+    assert_eq!(out.status.code(), Some(1), "{err}");
+    assert!(
+        err.contains("tracks.json") && err.contains("not a regular file"),
+        "{err}"
+    );
+    assert!(
+        std::fs::symlink_metadata(&pipe)
+            .unwrap()
+            .file_type()
+            .is_fifo()
+    );
+    // And the library's atomic writer refuses it too.
+    let e = jawtrack::capture::write_atomic(&pipe, b"{}")
+        .unwrap_err()
+        .to_string();
+    assert!(e.contains("not a regular file"), "{e}");
+}

@@ -6,7 +6,11 @@ use std::path::Path;
 
 use crate::error::{Error, Result};
 
+/// Write `bytes` to `path` atomically. A `path` that exists and is not a regular file (a
+/// device, a pipe, a folder, a link) is refused: renaming over it would replace the node
+/// itself, e.g. /dev/full with an ordinary file.
 pub fn write_atomic(path: &Path, bytes: &[u8]) -> Result<()> {
+    check_replaceable(path)?;
     let dir = match path.parent() {
         Some(d) if !d.as_os_str().is_empty() => d,
         _ => Path::new("."),
@@ -29,6 +33,18 @@ pub fn write_atomic(path: &Path, bytes: &[u8]) -> Result<()> {
     }
     tmp.persist(path).map_err(|e| werr(e.error))?;
     Ok(())
+}
+
+/// `Ok` when `path` is absent or a regular file (not a link to one).
+pub fn check_replaceable(path: &Path) -> Result<()> {
+    match std::fs::symlink_metadata(path) {
+        Ok(m) if !m.file_type().is_file() => Err(Error::invalid(
+            path,
+            "output",
+            "exists and is not a regular file (a device, pipe, folder or link): refusing to replace it",
+        )),
+        _ => Ok(()),
+    }
 }
 
 pub fn write_json_atomic<T: serde::Serialize>(path: &Path, value: &T) -> Result<()> {

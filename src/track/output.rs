@@ -12,7 +12,7 @@ use serde_json::json;
 
 use super::sequence::{FrameResult, Status};
 use crate::capture::json::{FrameRecordJson, PoseJson, TRACKS_FORMAT, TracksJson};
-use crate::capture::{ArchPoses, write_json_atomic};
+use crate::capture::{ArchPoses, check_replaceable, write_json_atomic};
 use crate::error::{Error, Result};
 
 const REWRITE_EVERY: Duration = Duration::from_secs(1);
@@ -64,6 +64,9 @@ impl TracksWriter {
         force: bool,
     ) -> Result<(TracksWriter, Vec<FrameRecordJson>)> {
         let journal_path = Self::journal_path(path);
+        // Before anything is read or written: neither may replace a device, pipe or link.
+        check_replaceable(path)?;
+        check_replaceable(&journal_path)?;
         let mut records = Vec::new();
         let exists = path.exists() || journal_path.exists();
         if resume {
