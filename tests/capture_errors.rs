@@ -407,3 +407,66 @@ fn track_refuses_to_replace_an_output_that_is_not_a_regular_file() {
         .to_string();
     assert!(e.contains("not a regular file"), "{e}");
 }
+
+fn mkfifo(path: &Path) {
+    let _ = std::fs::remove_file(path);
+    assert!(
+        std::process::Command::new("mkfifo")
+            .arg(path)
+            .status()
+            .unwrap()
+            .success()
+    );
+}
+
+/// Found by hostile input: a FIFO in place of capture.json, a camera, a mask or a mesh blocked
+/// for ever (bf99878). Each is now refused as not a regular file, without reading it.
+#[cfg(unix)]
+#[test]
+fn a_pipe_in_place_of_any_input_is_refused_not_read() {
+    for file in [
+        "capture.json",
+        "cameras/cam1.json",
+        "meshes/upper.obj",
+        "init.json",
+    ] {
+        let (_t, dir) = fresh_capture();
+        mkfifo(&dir.join(file));
+        assert_mentions(&error_of(&dir), &[file, "not a regular file"]);
+    }
+    let (_t, dir) = fresh_capture();
+    mkfifo(&dir.join("masks/cam0/000001.png"));
+    assert_mentions(&error_of(&dir), &["000001.png", "not a regular file"]);
+}
+
+/// Found by hostile input: STL and PLY files claiming more triangles or vertices than they
+/// hold aborted allocating gigabytes inside their readers (bf99878, from /dev/zero).
+#[test]
+fn mesh_headers_that_claim_more_than_the_file_holds_are_refused() {
+    let (_t, dir) = fresh_capture();
+    let mut stl = vec![0u8; 84];
+    stl[80..84].copy_from_slice(&u32::MAX.to_le_bytes());
+    std::fs::write(dir.join("meshes/upper.stl"), &stl).unwrap();
+    edit_json(&dir.join("capture.json"), |v| {
+        v["meshes"]["upper"] = "meshes/upper.stl".into();
+        v["boi"] =
+            serde_json::json!({"upper": "meshes/upper.boi.json", "lower": "meshes/lower.boi.json"});
+    });
+    assert_mentions(
+        &error_of(&dir),
+        &["upper.stl", "`triangle count`", "4294967295"],
+    );
+
+    let (_t, dir) = fresh_capture();
+    let ply = "ply\nformat binary_little_endian 1.0\nelement vertex 4000000000\nproperty float x\nproperty float y\nproperty float z\nelement face 1\nproperty list uchar int vertex_indices\nend_header\n";
+    std::fs::write(dir.join("meshes/upper.ply"), ply).unwrap();
+    edit_json(&dir.join("capture.json"), |v| {
+        v["meshes"]["upper"] = "meshes/upper.ply".into();
+        v["boi"] =
+            serde_json::json!({"upper": "meshes/upper.boi.json", "lower": "meshes/lower.boi.json"});
+    });
+    assert_mentions(
+        &error_of(&dir),
+        &["upper.ply", "`element counts`", "4000000001"],
+    );
+}

@@ -202,7 +202,7 @@ impl Status {
 
 /// Read and parse a JSON file; a missing file is [`Error::Missing`] with `what`.
 pub fn read_json<T: DeserializeOwned>(path: &Path, what: &str) -> Result<T> {
-    let text = std::fs::read_to_string(path).map_err(|e| Error::read(path, what, e))?;
+    let text = crate::capture::read::read_text(path, what)?;
     parse_json(&text, path)
 }
 

@@ -102,8 +102,8 @@ impl LabelMask {
 }
 
 fn open_image(path: &Path) -> Result<image::ImageReader<std::io::BufReader<std::fs::File>>> {
-    image::ImageReader::open(path)
-        .map_err(|e| Error::read(path, "mask", e))?
+    let (file, _) = crate::capture::read::open_input(path, "mask")?;
+    image::ImageReader::new(std::io::BufReader::new(file))
         .with_guessed_format()
         .map_err(|e| Error::read(path, "mask", e))
 }

@@ -6,6 +6,7 @@ mod camera;
 pub mod json;
 pub mod masks;
 pub mod mesh;
+pub mod read;
 mod write;
 
 use std::collections::BTreeSet;

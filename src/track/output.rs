@@ -152,7 +152,7 @@ impl TracksWriter {
 
 /// The complete lines of a journal (a last line cut off by an interruption is dropped).
 fn read_journal(path: &Path) -> Result<Vec<FrameRecordJson>> {
-    let file = std::fs::File::open(path).map_err(|e| Error::read(path, "journal", e))?;
+    let (file, _) = crate::capture::read::open_input(path, "journal")?;
     let mut out = Vec::new();
     for line in std::io::BufReader::new(file).lines() {
         let line = line.map_err(|e| Error::read(path, "journal", e))?;

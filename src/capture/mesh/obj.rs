@@ -12,7 +12,7 @@ use crate::error::{Error, Result};
 const NO_TAG: u32 = u32::MAX;
 
 pub(crate) fn read_obj(path: &Path) -> Result<RawMesh> {
-    let text = std::fs::read_to_string(path).map_err(|e| Error::read(path, "mesh", e))?;
+    let text = crate::capture::read::read_text(path, "mesh")?;
     parse_obj(&text, path)
 }
 

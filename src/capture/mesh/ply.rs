@@ -34,9 +34,51 @@ fn index_list(p: &Property) -> Option<Vec<i64>> {
     })
 }
 
+/// The header's element counts, which the reader allocates for, must fit the file: every
+/// element takes at least a byte. The reader is rewound to the start.
+fn check_claimed_counts(
+    path: &Path,
+    reader: &mut std::io::BufReader<std::fs::File>,
+    len: u64,
+) -> Result<()> {
+    use std::io::{BufRead, Read, Seek};
+    let mut claimed: u64 = 0;
+    let mut line = Vec::new();
+    // The header is text up to `end_header`; a few kilobytes is plenty.
+    for _ in 0..10_000 {
+        line.clear();
+        let n = reader
+            .by_ref()
+            .take(4096)
+            .read_until(b'\n', &mut line)
+            .map_err(|e| Error::read(path, "mesh", e))?;
+        let text = String::from_utf8_lossy(&line);
+        let words: Vec<&str> = text.split_ascii_whitespace().collect();
+        if n == 0 || words.first() == Some(&"end_header") {
+            break;
+        }
+        if let ["element", name, count] = words[..] {
+            let count: u64 = count.parse().map_err(|_| {
+                Error::invalid(path, format!("element {name}"), "the count is not a number")
+            })?;
+            claimed = claimed.saturating_add(count);
+        }
+    }
+    reader.rewind().map_err(|e| Error::read(path, "mesh", e))?;
+    if claimed > len {
+        return Err(Error::invalid(
+            path,
+            "element counts",
+            format!("the header claims {claimed} elements, more than the file's {len} bytes hold"),
+        ));
+    }
+    Ok(())
+}
+
 pub(crate) fn read_ply(path: &Path) -> Result<RawMesh> {
-    let file = std::fs::File::open(path).map_err(|e| Error::read(path, "mesh", e))?;
+    let (file, len) = crate::capture::read::open_input(path, "mesh")?;
     let mut reader = std::io::BufReader::new(file);
+    check_claimed_counts(path, &mut reader, len)?;
     let ply = Parser::<ply_rs_bw::ply::DefaultElement>::new()
         .read_ply(&mut reader)
         .map_err(|e| Error::invalid(path, "file", format!("not a readable PLY file: {e}")))?;
