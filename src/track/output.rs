@@ -4,7 +4,7 @@
 //! in progress; `--resume` reads the journal (or tracks.json) back and continues after the last
 //! complete frame. Writes stay linear in the sequence length.
 
-use std::io::{BufRead, Write};
+use std::io::Write;
 use std::path::{Path, PathBuf};
 use std::time::{Duration, Instant};
 
@@ -56,12 +56,14 @@ impl TracksWriter {
     }
 
     /// Start writing `path`. With `resume`, the frames already written (journal first, else
-    /// tracks.json) are read back and returned; without it an existing output is an error
-    /// unless `force`.
+    /// tracks.json) are read back, checked against the capture's `frames` (see
+    /// [`check_records`]) and returned; without it an existing output is an error unless
+    /// `force`.
     pub fn open(
         path: &Path,
         resume: bool,
         force: bool,
+        frames: std::ops::Range<u32>,
     ) -> Result<(TracksWriter, Vec<FrameRecordJson>)> {
         let journal_path = Self::journal_path(path);
         // Before anything is read or written: neither may replace a device, pipe or link.
@@ -72,9 +74,13 @@ impl TracksWriter {
         if resume {
             if journal_path.exists() {
                 records = read_journal(&journal_path)?;
+                check_records(&journal_path, &records, &frames, |i| {
+                    format!("line {}", i + 1)
+                })?;
             } else if path.exists() {
                 let tj: TracksJson = crate::capture::json::read_json(path, "tracks file")?;
                 records = tj.frames;
+                check_records(path, &records, &frames, |i| format!("frames[{i}]"))?;
             }
         } else if exists && !force {
             return Err(Error::invalid(
@@ -150,18 +156,71 @@ impl TracksWriter {
     }
 }
 
-/// The complete lines of a journal (a last line cut off by an interruption is dropped).
+/// The lines of a journal. Only a last line cut off by an interruption (no newline after it)
+/// may fail to parse, and is dropped; any other line that does not parse is an error naming it.
 fn read_journal(path: &Path) -> Result<Vec<FrameRecordJson>> {
-    let (file, _) = crate::capture::read::open_input(path, "journal")?;
+    let text = crate::capture::read::read_text(path, "journal")?;
     let mut out = Vec::new();
-    for line in std::io::BufReader::new(file).lines() {
-        let line = line.map_err(|e| Error::read(path, "journal", e))?;
-        match serde_json::from_str(&line) {
+    let lines: Vec<&str> = text.split_inclusive('\n').collect();
+    for (i, line) in lines.iter().enumerate() {
+        let torn = i + 1 == lines.len() && !line.ends_with('\n');
+        match serde_json::from_str(line.trim_end()) {
             Ok(r) => out.push(r),
-            Err(_) => break,
+            Err(_) if torn => break,
+            Err(e) => {
+                return Err(Error::invalid(
+                    path,
+                    format!("line {}", i + 1),
+                    format!(
+                        "not a frame record ({e}); only a last line cut off by an interruption may be"
+                    ),
+                ));
+            }
         }
     }
     Ok(out)
+}
+
+/// Records written before may be trusted only as a whole: frames within the capture's, in
+/// increasing order without repeats, and poses that read back (finite, rotations). `at` names
+/// a record for errors.
+pub fn check_records(
+    path: &Path,
+    records: &[FrameRecordJson],
+    frames: &std::ops::Range<u32>,
+    at: impl Fn(usize) -> String,
+) -> Result<()> {
+    let mut previous: Option<u32> = None;
+    for (i, r) in records.iter().enumerate() {
+        if !frames.contains(&r.frame) {
+            return Err(Error::invalid(
+                path,
+                at(i),
+                format!(
+                    "frame {} is outside the capture's frames {}..{}",
+                    r.frame, frames.start, frames.end
+                ),
+            ));
+        }
+        if let Some(p) = previous.filter(|&p| r.frame <= p) {
+            return Err(Error::invalid(
+                path,
+                at(i),
+                format!(
+                    "frame {} comes after frame {p}: frames must increase, each once",
+                    r.frame
+                ),
+            ));
+        }
+        previous = Some(r.frame);
+        record_poses(path, r).map_err(|e| match e {
+            Error::Invalid { problem, field, .. } => {
+                Error::invalid(path, format!("{}: {field}", at(i)), problem)
+            }
+            other => other,
+        })?;
+    }
+    Ok(())
 }
 
 /// Poses and status of a written record.
@@ -174,4 +233,75 @@ pub fn record_poses(path: &Path, r: &FrameRecordJson) -> Result<(ArchPoses, Stat
         },
         status,
     ))
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    fn line(frame: u32, x: &str) -> String {
+        format!(
+            r#"{{"frame": {frame}, "upper": {{"rotation": [[1,0,0],[0,1,0],[0,0,1]], "translation": [{x},0,0]}}, "lower": {{"rotation": [[1,0,0],[0,1,0],[0,0,1]], "translation": [0,-10,0]}}, "status": "ok"}}"#
+        )
+    }
+
+    /// Resume from a journal holding `text`, for a capture of frames 0..12.
+    fn resume(text: &str) -> Result<Vec<FrameRecordJson>> {
+        let t = tempfile::tempdir().unwrap();
+        let out = t.path().join("tracks.json");
+        std::fs::write(t.path().join("tracks.json.journal"), text).unwrap();
+        TracksWriter::open(&out, true, false, 0..12).map(|(_, records)| records)
+    }
+
+    fn refused(text: &str, words: &[&str]) {
+        let e = resume(text).unwrap_err().to_string();
+        for w in words {
+            assert!(e.contains(w), "{e:?} lacks {w:?}");
+        }
+    }
+
+    #[test]
+    fn a_torn_last_line_is_dropped_and_the_rest_kept() {
+        let text = format!(
+            "{}\n{}\n{}",
+            line(0, "0"),
+            line(1, "0"),
+            &line(2, "0")[..40]
+        );
+        let records = resume(&text).unwrap();
+        assert_eq!(records.iter().map(|r| r.frame).collect::<Vec<_>>(), [0, 1]);
+    }
+
+    /// Found by hostile input (bf99878): each of these was accepted and tracks.json lied.
+    #[test]
+    fn a_journal_line_with_a_frame_outside_the_capture_is_refused() {
+        refused(
+            &format!("{}\n{}\n", line(0, "0"), line(999, "0")),
+            &["tracks.json.journal", "`line 2`", "frame 999", "0..12"],
+        );
+    }
+
+    #[test]
+    fn a_duplicated_journal_line_is_refused() {
+        refused(
+            &format!("{}\n{}\n{}\n", line(0, "0"), line(1, "0"), line(1, "0")),
+            &["`line 3`", "frame 1 comes after frame 1"],
+        );
+    }
+
+    #[test]
+    fn a_journal_pose_of_1e308_is_refused() {
+        refused(
+            &format!("{}\n{}\n", line(0, "0"), line(1, "1e308")),
+            &["line 2: frame 1.upper.translation", "1 km"],
+        );
+    }
+
+    #[test]
+    fn garbage_in_the_middle_of_a_journal_is_refused_not_truncated() {
+        refused(
+            &format!("{}\nnot json\n{}\n", line(0, "0"), line(2, "0")),
+            &["`line 2`", "not a frame record"],
+        );
+    }
 }

@@ -98,7 +98,8 @@ impl<'c> Session<'c> {
                 ),
             ));
         }
-        let (writer, done) = TracksWriter::open(&options.output, options.resume, options.force)?;
+        let (writer, done) =
+            TracksWriter::open(&options.output, options.resume, options.force, all.clone())?;
         let next = done
             .last()
             .map_or(range.start, |r| r.frame + 1)
