@@ -148,6 +148,10 @@ pub struct InitPointJson {
 pub struct TracksJson {
     #[serde(default = "tracks_format")]
     pub format: String,
+    /// jawtrack's addition: the fingerprint of the capture and settings that tracked these
+    /// frames, which `--resume` checks.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub fingerprint: Option<String>,
     pub frames: Vec<FrameRecordJson>,
 }
 

@@ -127,6 +127,7 @@ pub(super) fn write_capture(
     write_json_atomic(
         &dir.join("gt/poses.json"),
         &TracksJson {
+            fingerprint: None,
             format: crate::capture::json::TRACKS_FORMAT.into(),
             frames: records,
         },

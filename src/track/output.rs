@@ -22,7 +22,15 @@ pub struct TracksWriter {
     journal_path: PathBuf,
     journal: std::fs::File,
     records: Vec<FrameRecordJson>,
+    fingerprint: String,
     last_rewrite: Instant,
+}
+
+/// The journal's first line: what wrote it.
+#[derive(serde::Serialize, serde::Deserialize)]
+#[serde(deny_unknown_fields)]
+struct JournalHead {
+    fingerprint: String,
 }
 
 /// The record of a tracked frame, as the spec writes it.
@@ -55,15 +63,17 @@ impl TracksWriter {
         path.with_file_name(name)
     }
 
-    /// Start writing `path`. With `resume`, the frames already written (journal first, else
-    /// tracks.json) are read back, checked against the capture's `frames` (see
-    /// [`check_records`]) and returned; without it an existing output is an error unless
+    /// Start writing `path` for a run whose capture and settings have `fingerprint`. With
+    /// `resume`, the frames already written (journal first, else tracks.json) are read back,
+    /// checked (the same fingerprint; records as [`check_records`] wants them, within the
+    /// capture's `frames`) and returned; without it an existing output is an error unless
     /// `force`.
     pub fn open(
         path: &Path,
         resume: bool,
         force: bool,
         frames: std::ops::Range<u32>,
+        fingerprint: &str,
     ) -> Result<(TracksWriter, Vec<FrameRecordJson>)> {
         let journal_path = Self::journal_path(path);
         // Before anything is read or written: neither may replace a device, pipe or link.
@@ -73,14 +83,15 @@ impl TracksWriter {
         let exists = path.exists() || journal_path.exists();
         if resume {
             if journal_path.exists() {
-                records = read_journal(&journal_path)?;
-                check_records(&journal_path, &records, &frames, |i| {
-                    format!("line {}", i + 1)
-                })?;
+                let (written_by, kept) = read_journal(&journal_path)?;
+                check_fingerprint(&journal_path, "line 1", written_by.as_deref(), fingerprint)?;
+                check_records(&journal_path, &kept, &frames, |i| format!("line {}", i + 2))?;
+                records = kept;
             } else if path.exists() {
                 let tj: TracksJson = crate::capture::json::read_json(path, "tracks file")?;
+                check_fingerprint(path, "fingerprint", tj.fingerprint.as_deref(), fingerprint)?;
+                check_records(path, &tj.frames, &frames, |i| format!("frames[{i}]"))?;
                 records = tj.frames;
-                check_records(path, &records, &frames, |i| format!("frames[{i}]"))?;
             }
         } else if exists && !force {
             return Err(Error::invalid(
@@ -96,8 +107,17 @@ impl TracksWriter {
         if let Some(dir) = path.parent().filter(|d| !d.as_os_str().is_empty()) {
             std::fs::create_dir_all(dir).map_err(werr)?;
         }
-        // The journal restarts with exactly the frames kept.
+        // The journal restarts with its head and exactly the frames kept.
         let mut journal = std::fs::File::create(&journal_path).map_err(werr)?;
+        let head = JournalHead {
+            fingerprint: fingerprint.to_string(),
+        };
+        writeln!(
+            journal,
+            "{}",
+            serde_json::to_string(&head).expect("plain data")
+        )
+        .map_err(werr)?;
         for r in &records {
             writeln!(journal, "{}", serde_json::to_string(r).expect("plain data")).map_err(werr)?;
         }
@@ -108,6 +128,7 @@ impl TracksWriter {
                 journal_path,
                 journal,
                 records: records.clone(),
+                fingerprint: fingerprint.to_string(),
                 last_rewrite: Instant::now(),
             },
             records,
@@ -140,6 +161,7 @@ impl TracksWriter {
             &self.path,
             &TracksJson {
                 format: TRACKS_FORMAT.to_string(),
+                fingerprint: Some(self.fingerprint.clone()),
                 frames: self.records.clone(),
             },
         )
@@ -156,13 +178,39 @@ impl TracksWriter {
     }
 }
 
-/// The lines of a journal. Only a last line cut off by an interruption (no newline after it)
-/// may fail to parse, and is dropped; any other line that does not parse is an error naming it.
-fn read_journal(path: &Path) -> Result<Vec<FrameRecordJson>> {
+/// A written run's fingerprint must be this run's: a journal or tracks.json of another capture,
+/// other settings or none at all is not continued.
+fn check_fingerprint(path: &Path, field: &str, written: Option<&str>, now: &str) -> Result<()> {
+    match written {
+        Some(w) if w == now => Ok(()),
+        Some(_) => Err(Error::invalid(
+            path,
+            field,
+            "was written for another capture or other settings: --resume continues only the same run (--force starts over)",
+        )),
+        None => Err(Error::invalid(
+            path,
+            field,
+            "no fingerprint of the run that wrote it: --resume continues only a run of this jawtrack (--force starts over)",
+        )),
+    }
+}
+
+/// The fingerprint in a journal's first line and the frame records after it. Only a last line
+/// cut off by an interruption (no newline after it) may fail to parse, and is dropped; any
+/// other line that does not parse is an error naming it.
+fn read_journal(path: &Path) -> Result<(Option<String>, Vec<FrameRecordJson>)> {
     let text = crate::capture::read::read_text(path, "journal")?;
+    let mut lines: Vec<&str> = text.split_inclusive('\n').collect();
+    let head = lines
+        .first()
+        .and_then(|l| serde_json::from_str::<JournalHead>(l.trim_end()).ok());
+    if head.is_some() {
+        lines.remove(0);
+    }
     let mut out = Vec::new();
-    let lines: Vec<&str> = text.split_inclusive('\n').collect();
     for (i, line) in lines.iter().enumerate() {
+        let line_no = i + 1 + usize::from(head.is_some());
         let torn = i + 1 == lines.len() && !line.ends_with('\n');
         match serde_json::from_str(line.trim_end()) {
             Ok(r) => out.push(r),
@@ -170,7 +218,7 @@ fn read_journal(path: &Path) -> Result<Vec<FrameRecordJson>> {
             Err(e) => {
                 return Err(Error::invalid(
                     path,
-                    format!("line {}", i + 1),
+                    format!("line {line_no}"),
                     format!(
                         "not a frame record ({e}); only a last line cut off by an interruption may be"
                     ),
@@ -178,7 +226,7 @@ fn read_journal(path: &Path) -> Result<Vec<FrameRecordJson>> {
             }
         }
     }
-    Ok(out)
+    Ok((head.map(|h| h.fingerprint), out))
 }
 
 /// Records written before may be trusted only as a whole: frames within the capture's, in
@@ -245,12 +293,18 @@ mod tests {
         )
     }
 
-    /// Resume from a journal holding `text`, for a capture of frames 0..12.
-    fn resume(text: &str) -> Result<Vec<FrameRecordJson>> {
+    const HEAD: &str = "{\"fingerprint\": \"run\"}\n";
+
+    /// Resume run `run` from a journal holding `text`, for a capture of frames 0..12.
+    fn resume_run(text: &str, run: &str) -> Result<Vec<FrameRecordJson>> {
         let t = tempfile::tempdir().unwrap();
         let out = t.path().join("tracks.json");
         std::fs::write(t.path().join("tracks.json.journal"), text).unwrap();
-        TracksWriter::open(&out, true, false, 0..12).map(|(_, records)| records)
+        TracksWriter::open(&out, true, false, 0..12, run).map(|(_, records)| records)
+    }
+
+    fn resume(text: &str) -> Result<Vec<FrameRecordJson>> {
+        resume_run(&format!("{HEAD}{text}"), "run")
     }
 
     fn refused(text: &str, words: &[&str]) {
@@ -277,7 +331,7 @@ mod tests {
     fn a_journal_line_with_a_frame_outside_the_capture_is_refused() {
         refused(
             &format!("{}\n{}\n", line(0, "0"), line(999, "0")),
-            &["tracks.json.journal", "`line 2`", "frame 999", "0..12"],
+            &["tracks.json.journal", "`line 3`", "frame 999", "0..12"],
         );
     }
 
@@ -285,7 +339,7 @@ mod tests {
     fn a_duplicated_journal_line_is_refused() {
         refused(
             &format!("{}\n{}\n{}\n", line(0, "0"), line(1, "0"), line(1, "0")),
-            &["`line 3`", "frame 1 comes after frame 1"],
+            &["`line 4`", "frame 1 comes after frame 1"],
         );
     }
 
@@ -293,7 +347,7 @@ mod tests {
     fn a_journal_pose_of_1e308_is_refused() {
         refused(
             &format!("{}\n{}\n", line(0, "0"), line(1, "1e308")),
-            &["line 2: frame 1.upper.translation", "1 km"],
+            &["line 3: frame 1.upper.translation", "1 km"],
         );
     }
 
@@ -301,7 +355,24 @@ mod tests {
     fn garbage_in_the_middle_of_a_journal_is_refused_not_truncated() {
         refused(
             &format!("{}\nnot json\n{}\n", line(0, "0"), line(2, "0")),
-            &["`line 2`", "not a frame record"],
+            &["`line 3`", "not a frame record"],
         );
+    }
+
+    /// Found by hostile input (bf99878): a journal of another capture or other settings was
+    /// continued.
+    #[test]
+    fn a_journal_of_another_run_or_of_none_is_refused() {
+        let text = format!("{HEAD}{}\n", line(0, "0"));
+        let e = resume_run(&text, "another").unwrap_err().to_string();
+        assert!(
+            e.contains("`line 1`") && e.contains("another capture or other settings"),
+            "{e}"
+        );
+        let e = resume_run(&format!("{}\n", line(0, "0")), "run")
+            .unwrap_err()
+            .to_string();
+        assert!(e.contains("no fingerprint"), "{e}");
+        assert_eq!(resume_run(&text, "run").unwrap().len(), 1);
     }
 }

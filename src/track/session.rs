@@ -98,8 +98,13 @@ impl<'c> Session<'c> {
                 ),
             ));
         }
-        let (writer, done) =
-            TracksWriter::open(&options.output, options.resume, options.force, all.clone())?;
+        let (writer, done) = TracksWriter::open(
+            &options.output,
+            options.resume,
+            options.force,
+            all.clone(),
+            &fingerprint(capture, &options.settings),
+        )?;
         let next = done
             .last()
             .map_or(range.start, |r| r.frame + 1)
@@ -176,6 +181,52 @@ impl<'c> Session<'c> {
             evaluations,
             backend: self.backend,
         })
+    }
+}
+
+/// What a run's result depends on, hashed (FNV-1a, 64 bits): the capture as loaded (cameras,
+/// frames, meshes after simplification, mask mode and reduction, the start) and the settings.
+/// A resumed run must have the same; the engine is left out, since every engine computes the
+/// same energy.
+pub fn fingerprint(capture: &Capture, settings: &TrackSettings) -> String {
+    let mut hash = Fnv::default();
+    for cam in &capture.cameras {
+        hash.write(format!("{:?} {:?}", cam.calibrated, cam.mask_size).as_bytes());
+    }
+    hash.write(
+        format!(
+            "{} {} {:?} {} {:?}",
+            capture.first_frame,
+            capture.frame_count,
+            capture.mask_mode,
+            capture.mask_reduce,
+            capture.init
+        )
+        .as_bytes(),
+    );
+    for mesh in [&capture.upper, &capture.lower] {
+        hash.write(bytemuck::cast_slice(&mesh.positions));
+        hash.write(bytemuck::cast_slice(&mesh.triangles));
+        hash.write(&mesh.boi.iter().map(|&b| b as u8).collect::<Vec<u8>>());
+    }
+    hash.write(&serde_json::to_vec(settings).expect("plain data"));
+    format!("{:016x}", hash.0)
+}
+
+/// FNV-1a, 64 bits: stable across builds and platforms, unlike std's hasher.
+struct Fnv(u64);
+
+impl Default for Fnv {
+    fn default() -> Self {
+        Fnv(0xcbf2_9ce4_8422_2325)
+    }
+}
+
+impl Fnv {
+    fn write(&mut self, bytes: &[u8]) {
+        for &b in bytes {
+            self.0 = (self.0 ^ b as u64).wrapping_mul(0x0100_0000_01b3);
+        }
     }
 }
 
