@@ -470,3 +470,98 @@ fn mesh_headers_that_claim_more_than_the_file_holds_are_refused() {
         &["upper.ply", "`element counts`", "4000000001"],
     );
 }
+
+/// Found by hostile input (bf99878): capture.json could name files anywhere (`/etc/passwd`
+/// was opened as a face list). Each path must stay in the capture folder unless the user
+/// says otherwise.
+#[test]
+fn paths_in_capture_json_may_not_leave_the_capture() {
+    let outside_file = |dir: &Path| {
+        let p = dir.parent().unwrap().join("elsewhere.obj");
+        std::fs::copy(dir.join("meshes/upper.obj"), &p).unwrap();
+        p
+    };
+    type Edit = fn(&mut serde_json::Value, &str);
+    let cases: [(&str, Edit, &str); 6] = [
+        (
+            "meshes.upper",
+            |v, abs| v["meshes"]["upper"] = abs.into(),
+            "absolute",
+        ),
+        (
+            "meshes.lower",
+            |v, _| v["meshes"]["lower"] = "meshes/../../elsewhere.obj".into(),
+            "climbs out",
+        ),
+        (
+            "masks.dir",
+            |v, _| v["masks"]["dir"] = "..".into(),
+            "climbs out",
+        ),
+        (
+            "masks.dir",
+            |v, _| v["masks"]["dir"] = "/".into(),
+            "absolute",
+        ),
+        (
+            "boi.upper",
+            |v, _| v["boi"] = serde_json::json!({"upper": "/etc/passwd", "lower": "x.json"}),
+            "absolute",
+        ),
+        (
+            "meshes.mandible",
+            |v, _| v["meshes"]["mandible"] = "../elsewhere.obj".into(),
+            "climbs out",
+        ),
+    ];
+    for (field, edit, why) in cases {
+        let (_t, dir) = fresh_capture();
+        let abs = outside_file(&dir);
+        edit_json(&dir.join("capture.json"), |v| {
+            edit(v, abs.to_str().unwrap())
+        });
+        assert_mentions(
+            &error_of(&dir),
+            &[
+                "capture.json",
+                &format!("`{field}`"),
+                why,
+                "--allow-outside",
+            ],
+        );
+    }
+    // A link out of the folder is followed and refused too.
+    #[cfg(unix)]
+    {
+        let (_t, dir) = fresh_capture();
+        let abs = outside_file(&dir);
+        std::fs::remove_file(dir.join("meshes/upper.obj")).unwrap();
+        std::os::unix::fs::symlink(&abs, dir.join("meshes/upper.obj")).unwrap();
+        assert_mentions(&error_of(&dir), &["`meshes.upper`", "through a link"]);
+        // ... unless the user allows it.
+        let options = jawtrack::capture::OpenOptions {
+            allow_outside: true,
+            ..Default::default()
+        };
+        assert!(Capture::open_with(&dir, options).is_ok());
+    }
+}
+
+/// Found by hostile input (bf99878): `--simplify-mm NaN` tripped a C assertion (abort).
+#[test]
+fn a_simplification_distance_that_is_not_a_distance_is_refused() {
+    let (_t, dir) = fresh_capture();
+    for bad in ["NaN", "-1", "inf"] {
+        let out = std::process::Command::new(env!("CARGO_BIN_EXE_jawtrack"))
+            .args(["validate", "--quick", &format!("--simplify-mm={bad}")])
+            .arg(&dir)
+            .output()
+            .unwrap();
+        let err = String::from_utf8_lossy(&out.stderr);
+        assert_eq!(out.status.code(), Some(2), "{bad}: {err}");
+        assert!(
+            err.contains("--simplify-mm") && err.contains("from 0 to 100 mm"),
+            "{bad}: {err}"
+        );
+    }
+}

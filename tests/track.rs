@@ -122,9 +122,15 @@ fn an_interrupted_run_resumes_after_its_last_complete_frame() {
     // An interruption in frame 3: the journal holds frames 0..3 and half a line of frame 3.
     let journal = t.path().join("tracks.json.journal");
     // The journal's first line names the run (tracks.json keeps the same fingerprint).
-    let head = serde_json::json!({"fingerprint": first.fingerprint.clone().expect("a fingerprint")});
+    let head =
+        serde_json::json!({"fingerprint": first.fingerprint.clone().expect("a fingerprint")});
     let mut lines: Vec<String> = std::iter::once(head.to_string())
-        .chain(first.frames.iter().map(|f| serde_json::to_string(f).unwrap()))
+        .chain(
+            first
+                .frames
+                .iter()
+                .map(|f| serde_json::to_string(f).unwrap()),
+        )
         .collect();
     let cut = lines[3].clone();
     lines.push(cut[..cut.len() / 2].to_string());

@@ -110,6 +110,9 @@ pub struct OpenOptions {
     /// label; the cameras are scaled as for any smaller mask): the energy's cost falls with the
     /// pixel count, its precision with the pixel size. 1 reads them as they are.
     pub mask_reduce: u32,
+    /// Let capture.json name files outside the capture folder (absolute paths, `..`, links
+    /// out). Off by default: a capture from elsewhere reads only its own folder.
+    pub allow_outside: bool,
 }
 
 /// The default simplification bound: 0.02 mm, about a twentieth of a pixel of a GoPro's
@@ -123,6 +126,7 @@ impl Default for OpenOptions {
             max_triangles: None,
             simplify_mm: DEFAULT_SIMPLIFY_MM,
             mask_reduce: 1,
+            allow_outside: false,
         }
     }
 }
@@ -210,10 +214,18 @@ impl Capture {
             }
         };
 
+        let inside = |field: &str, rel: &str| {
+            if options.allow_outside {
+                Ok(dir.join(rel))
+            } else {
+                path_inside(dir, &capture_path, field, rel)
+            }
+        };
         let mut cameras = Vec::with_capacity(cj.cameras.len());
-        let mask_dir = dir.join(&cj.masks.dir);
-        for name in &cj.cameras {
-            let calibrated = read_camera(&dir.join("cameras").join(format!("{name}.json")), name)?;
+        let mask_dir = inside("masks.dir", &cj.masks.dir)?;
+        for (i, name) in cj.cameras.iter().enumerate() {
+            let camera_file = inside(&format!("cameras[{i}]"), &format!("cameras/{name}.json"))?;
+            let calibrated = read_camera(&camera_file, name)?;
             let (mask_size, frames_present) = scan_masks(&mask_dir.join(name), mask_mode)?;
             let mask_size = mask_size
                 .map(|size| reduced_size(size, options.mask_reduce, &mask_dir.join(name)))
@@ -250,12 +262,13 @@ impl Capture {
             BoiJson::Group { group } => {
                 (BoiRef::Group(group.clone()), BoiRef::Group(group.clone()))
             }
-            BoiJson::FaceLists { upper, lower } => {
-                (BoiRef::List(dir.join(upper)), BoiRef::List(dir.join(lower)))
-            }
+            BoiJson::FaceLists { upper, lower } => (
+                BoiRef::List(inside("boi.upper", upper)?),
+                BoiRef::List(inside("boi.lower", lower)?),
+            ),
         };
-        let load_mesh = |rel: &str, boi: &BoiRef| -> Result<Mesh> {
-            let path = dir.join(rel);
+        let load_mesh = |field: &str, rel: &str, boi: &BoiRef| -> Result<Mesh> {
+            let path = inside(field, rel)?;
             let source = match boi {
                 BoiRef::Group(g) => BoiSource::Group(g),
                 BoiRef::List(p) => BoiSource::FaceList(p),
@@ -266,13 +279,13 @@ impl Capture {
                 None => mesh.simplified(Simplify::MaxErrorMm(options.simplify_mm)),
             })
         };
-        let upper = load_mesh(&cj.meshes.upper, &upper_boi)?;
-        let lower = load_mesh(&cj.meshes.lower, &lower_boi)?;
+        let upper = load_mesh("meshes.upper", &cj.meshes.upper, &upper_boi)?;
+        let lower = load_mesh("meshes.lower", &cj.meshes.lower, &lower_boi)?;
         let mandible = cj
             .meshes
             .mandible
             .as_ref()
-            .map(|rel| Mesh::load(&dir.join(rel), BoiSource::None))
+            .map(|rel| Mesh::load(&inside("meshes.mandible", rel)?, BoiSource::None))
             .transpose()?;
 
         let mut capture = Capture {
@@ -480,6 +493,46 @@ impl Capture {
 enum BoiRef {
     Group(String),
     List(PathBuf),
+}
+
+/// `rel` (capture.json's `field`) joined to the capture folder `dir`, refused when it leaves the
+/// folder: an absolute path, a `..` that climbs out, or a link that resolves outside.
+fn path_inside(dir: &Path, capture_path: &Path, field: &str, rel: &str) -> Result<PathBuf> {
+    use std::path::Component;
+    let outside = |why: &str| {
+        Error::invalid(
+            capture_path,
+            field,
+            format!(
+                "{why}: a capture reads only its own folder (`--allow-outside` lets it read elsewhere)"
+            ),
+        )
+    };
+    let rel_path = Path::new(rel);
+    let mut depth = 0i64;
+    for c in rel_path.components() {
+        match c {
+            Component::Prefix(_) | Component::RootDir => {
+                return Err(outside("an absolute path"));
+            }
+            Component::ParentDir => depth -= 1,
+            Component::Normal(_) => depth += 1,
+            Component::CurDir => {}
+        }
+        if depth < 0 {
+            return Err(outside("the path climbs out of the capture folder"));
+        }
+    }
+    let path = dir.join(rel_path);
+    // Links are followed where the file exists; a missing file is reported by its reader.
+    if let (Ok(real), Ok(root)) = (path.canonicalize(), dir.canonicalize())
+        && !real.starts_with(&root)
+    {
+        return Err(outside(
+            "the path resolves (through a link) outside the capture folder",
+        ));
+    }
+    Ok(path)
 }
 
 /// List a camera's mask files and check that they share one size (headers only).

@@ -93,7 +93,7 @@ pub struct LoadArgs {
     pub max_triangles: Option<usize>,
     /// Simplify each arch as far as its surface stays within this distance (mm) of the
     /// scan's; 0 keeps every triangle (a silhouette needs far fewer than a scan has).
-    #[arg(long, default_value_t = jawtrack::capture::DEFAULT_SIMPLIFY_MM)]
+    #[arg(long, default_value_t = jawtrack::capture::DEFAULT_SIMPLIFY_MM, value_parser = non_negative_mm)]
     pub simplify_mm: f64,
     /// Read the masks at 1/K of their resolution (each K x K block's most common label; K
     /// must divide the masks' sides): for masks larger than the time per frame allows, e.g.
@@ -101,6 +101,10 @@ pub struct LoadArgs {
     /// costs the same), and the pixels are K times coarser.
     #[arg(long, default_value_t = 1, value_name = "K", value_parser = clap::value_parser!(u32).range(1..=16))]
     pub mask_reduce: u32,
+    /// Let capture.json name files outside the capture folder (absolute paths, `..`, links
+    /// out); refused by default.
+    #[arg(long)]
+    pub allow_outside: bool,
 }
 
 impl LoadArgs {
@@ -109,7 +113,17 @@ impl LoadArgs {
             max_triangles: self.max_triangles,
             simplify_mm: self.simplify_mm,
             mask_reduce: self.mask_reduce,
+            allow_outside: self.allow_outside,
         }
+    }
+}
+
+/// A distance in mm that must be finite and not negative (`--simplify-mm`).
+fn non_negative_mm(s: &str) -> Result<f64, String> {
+    match s.trim().parse::<f64>() {
+        Ok(v) if v.is_finite() && (0.0..=100.0).contains(&v) => Ok(v),
+        Ok(v) => Err(format!("must be a distance from 0 to 100 mm, found {v}")),
+        Err(e) => Err(format!("{s:?}: {e}")),
     }
 }
 
@@ -120,6 +134,7 @@ impl Default for LoadArgs {
             max_triangles: o.max_triangles,
             simplify_mm: o.simplify_mm,
             mask_reduce: o.mask_reduce,
+            allow_outside: o.allow_outside,
         }
     }
 }

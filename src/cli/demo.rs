@@ -58,7 +58,7 @@ pub fn run(a: Args) -> anyhow::Result<()> {
     super::report::synth(&out, &report);
 
     println!("\n== 2. read it back");
-    let capture = super::run::open_and_check(&out, true)?;
+    let capture = super::run::open_and_check(&out, Default::default(), true)?;
     println!(
         "{} cameras, frames {}..{}, meshes {} + {} triangles",
         capture.cameras.len(),

@@ -3,7 +3,7 @@
 use std::path::Path;
 
 use anyhow::Context;
-use jawtrack::capture::Capture;
+use jawtrack::capture::{Capture, OpenOptions};
 use jawtrack::synth::{self, SynthOptions, SynthReport};
 use jawtrack::track::{Session, SessionOptions, Summary};
 
@@ -17,9 +17,13 @@ pub fn synthesise(out: &Path, opts: &SynthOptions) -> anyhow::Result<SynthReport
 }
 
 /// Open a capture and (optionally) decode every mask of every frame.
-pub fn open_and_check(dir: &Path, decode_all: bool) -> anyhow::Result<Capture> {
-    let capture =
-        Capture::open(dir).with_context(|| format!("invalid capture {}", dir.display()))?;
+pub fn open_and_check(
+    dir: &Path,
+    options: OpenOptions,
+    decode_all: bool,
+) -> anyhow::Result<Capture> {
+    let capture = Capture::open_with(dir, options)
+        .with_context(|| format!("invalid capture {}", dir.display()))?;
     if decode_all {
         let bar = super::progress_bar(capture.frame_count as u64, "decoding masks");
         for frame in capture.frames() {

@@ -7,10 +7,12 @@ pub struct Args {
     /// Only read mask headers; do not decode every mask.
     #[arg(long)]
     pub quick: bool,
+    #[command(flatten)]
+    pub load: super::args::LoadArgs,
 }
 
 pub fn run(a: Args) -> anyhow::Result<()> {
-    let capture = super::run::open_and_check(&a.capture, !a.quick)?;
+    let capture = super::run::open_and_check(&a.capture, a.load.open_options(), !a.quick)?;
     super::report::capture(&capture);
     Ok(())
 }
