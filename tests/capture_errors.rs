@@ -565,3 +565,96 @@ fn a_simplification_distance_that_is_not_a_distance_is_refused() {
         );
     }
 }
+
+/// `frames.offsets` (the spec's, optional): a camera started late has its files numbered
+/// ahead; frame f of that camera is file f + offset, for masks as for every reader.
+#[test]
+fn frame_offsets_shift_a_cameras_files() {
+    let (_t, dir) = fresh_capture();
+    let original = Capture::open(&dir).unwrap();
+    let before: Vec<_> = original
+        .frames()
+        .map(|f| original.load_masks(f).unwrap())
+        .collect();
+    let cam1 = dir.join("masks/cam1");
+    let mut files: Vec<_> = std::fs::read_dir(&cam1)
+        .unwrap()
+        .map(|e| e.unwrap().path())
+        .collect();
+    files.sort();
+    for path in files.iter().rev() {
+        let n: u32 = path.file_stem().unwrap().to_str().unwrap().parse().unwrap();
+        std::fs::rename(path, cam1.join(format!("{:06}.png", n + 3))).unwrap();
+    }
+    edit_json(&dir.join("capture.json"), |v| {
+        v["frames"]["offsets"] = serde_json::json!({"cam1": 3})
+    });
+    let shifted = Capture::open(&dir).unwrap();
+    assert_eq!(
+        shifted.cameras[1].frames_present,
+        original.cameras[1].frames_present
+    );
+    for (f, masks) in shifted.frames().zip(&before) {
+        assert_eq!(
+            shifted.load_masks(f).unwrap().masks,
+            masks.masks,
+            "frame {f}"
+        );
+    }
+    // An offset for a camera the capture does not have is named.
+    edit_json(&dir.join("capture.json"), |v| {
+        v["frames"]["offsets"] = serde_json::json!({"cam9": 1})
+    });
+    assert_mentions(&error_of(&dir), &["`frames.offsets.cam9`", "no camera"]);
+}
+
+/// Found by hostile input (bf99878): unknown fields in capture.json were silently accepted
+/// (`frames.step`), so a misspelt optional field did nothing. Other programs may add fields of
+/// their own (the spec lets them), so an unknown field is named in a warning, not refused.
+#[test]
+fn an_unknown_field_in_capture_json_is_named() {
+    let (_t, dir) = fresh_capture();
+    edit_json(&dir.join("capture.json"), |v| {
+        v["frames"]["step"] = 2.into()
+    });
+    let c = Capture::open(&dir).unwrap();
+    assert_eq!(c.notes.len(), 1);
+    assert_mentions(
+        &c.notes[0],
+        &["capture.json", "`frames.step`", "not a field"],
+    );
+    let out = std::process::Command::new(env!("CARGO_BIN_EXE_jawtrack"))
+        .args(["validate", "--quick"])
+        .arg(&dir)
+        .output()
+        .unwrap();
+    assert!(out.status.success());
+    assert_mentions(
+        &String::from_utf8_lossy(&out.stderr),
+        &["warning:", "`frames.step`"],
+    );
+}
+
+/// `masks.mouth` (the spec's, optional) is read and checked: not an arch's label, and below
+/// 128 with combined masks.
+#[test]
+fn the_mouth_label_is_checked() {
+    let (_t, dir) = fresh_capture();
+    let labels = Capture::open(&dir).unwrap().mask_mode;
+    let jawtrack::capture::MaskMode::PerArch { upper, .. } = labels else {
+        panic!("a per-arch capture");
+    };
+    edit_json(&dir.join("capture.json"), |v| {
+        v["masks"]["mouth"] = 3.into()
+    });
+    assert_eq!(Capture::open(&dir).unwrap().mouth, Some(3));
+    edit_json(&dir.join("capture.json"), |v| {
+        v["masks"]["mouth"] = upper.into()
+    });
+    assert_mentions(&error_of(&dir), &["`masks.mouth`", "an arch's label"]);
+    edit_json(&dir.join("capture.json"), |v| {
+        v["masks"]["mode"] = "combined".into();
+        v["masks"]["mouth"] = 200.into();
+    });
+    assert_mentions(&error_of(&dir), &["`masks.mouth`", "below 128"]);
+}

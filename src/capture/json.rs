@@ -26,10 +26,13 @@ pub struct CaptureJson {
     pub masks: MasksJson,
 }
 
-#[derive(Debug, Clone, Copy, Serialize, Deserialize)]
+#[derive(Debug, Clone, Serialize, Deserialize)]
 pub struct FramesJson {
     pub first: u32,
     pub count: u32,
+    /// Per camera, how many frames its files run ahead of the capture's frame numbers.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub offsets: Option<std::collections::BTreeMap<String, i64>>,
 }
 
 #[derive(Debug, Clone, Serialize, Deserialize)]
@@ -56,6 +59,9 @@ pub struct MasksJson {
     pub upper: Option<i64>,
     #[serde(default, skip_serializing_if = "Option::is_none")]
     pub lower: Option<i64>,
+    /// The pixel value of the visible mouth interior (either mode).
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub mouth: Option<i64>,
 }
 
 #[derive(Debug, Clone, Serialize, Deserialize)]
@@ -212,6 +218,25 @@ pub fn read_json<T: DeserializeOwned>(path: &Path, what: &str) -> Result<T> {
 
 /// JSON text read from `origin` (a file, or where else it came from, such as a command-line
 /// option), with the same errors as `read_json`.
+/// Read and parse a JSON file, with the paths of the fields the schema does not have (other
+/// programs may add their own; a misspelt field shows here).
+pub fn read_json_noting_unknown<T: DeserializeOwned>(
+    path: &Path,
+    what: &str,
+) -> Result<(T, Vec<String>)> {
+    let text = crate::capture::read::read_text(path, what)?;
+    let mut unknown = Vec::new();
+    let de = &mut serde_json::Deserializer::from_str(&text);
+    let mut note = |field: serde_ignored::Path| unknown.push(field.to_string());
+    let value = serde_path_to_error::deserialize(serde_ignored::Deserializer::new(de, &mut note))
+        .map_err(|e| Error::Json {
+        path: path.to_path_buf(),
+        field: e.path().to_string(),
+        error: e.into_inner(),
+    })?;
+    Ok((value, unknown))
+}
+
 pub fn parse_json<T: DeserializeOwned>(text: &str, origin: &Path) -> Result<T> {
     let de = &mut serde_json::Deserializer::from_str(text);
     serde_path_to_error::deserialize(de).map_err(|e| Error::Json {

@@ -32,11 +32,20 @@ pub struct CaptureCamera {
     /// [`OpenOptions::mask_reduce`] when the capture was opened so); `None` when the camera has
     /// no masks.
     pub mask_size: Option<(u32, u32)>,
-    /// Frames with a mask file.
+    /// Frames (the capture's numbers) with a mask file.
     pub frames_present: BTreeSet<u32>,
+    /// How many frames this camera's files run ahead of the capture's numbers
+    /// (`frames.offsets`): frame f is file f + offset.
+    pub offset: i64,
 }
 
 impl CaptureCamera {
+    /// The file number of the capture's frame `frame` for this camera (`None`: before its
+    /// first file).
+    pub fn file_frame(&self, frame: u32) -> Option<u32> {
+        u32::try_from(frame as i64 + self.offset).ok()
+    }
+
     /// The camera the masks are seen through: calibrated intrinsics scaled to the mask size,
     /// distortion as calibrated (masks are used as they are; the energy draws the models
     /// through the lens).
@@ -85,6 +94,11 @@ pub struct Capture {
     pub mandible: Option<Mesh>,
     pub mask_dir: PathBuf,
     pub mask_mode: MaskMode,
+    /// The mask value of the visible mouth interior (`masks.mouth`), when the masks label it.
+    /// The paper's energy reads it as background.
+    pub mouth: Option<u8>,
+    /// What was read but not used (fields the format does not have), for the user to see.
+    pub notes: Vec<String>,
     /// Masks are read at 1/`mask_reduce` of their resolution ([`OpenOptions::mask_reduce`]).
     pub mask_reduce: u32,
     pub init: Option<Init>,
@@ -138,7 +152,17 @@ impl Capture {
 
     pub fn open_with(dir: &Path, options: OpenOptions) -> Result<Capture> {
         let capture_path = dir.join("capture.json");
-        let cj: CaptureJson = read_json(&capture_path, "capture.json")?;
+        let (cj, unknown): (CaptureJson, _) =
+            json::read_json_noting_unknown(&capture_path, "capture.json")?;
+        let notes = unknown
+            .iter()
+            .map(|field| {
+                format!(
+                    "{}: `{field}` is not a field of the capture format; ignored",
+                    capture_path.display()
+                )
+            })
+            .collect();
         if cj.format != json::CAPTURE_FORMAT {
             return Err(Error::invalid(
                 &capture_path,
@@ -221,12 +245,59 @@ impl Capture {
                 path_inside(dir, &capture_path, field, rel)
             }
         };
+        let offsets = cj.frames.offsets.clone().unwrap_or_default();
+        for (name, &offset) in &offsets {
+            let field = format!("frames.offsets.{name}");
+            if !cj.cameras.contains(name) {
+                return Err(Error::invalid(
+                    &capture_path,
+                    field,
+                    "no camera of that name",
+                ));
+            }
+            if offset.abs() > 1_000_000 {
+                return Err(Error::invalid(
+                    &capture_path,
+                    field,
+                    format!("an offset of {offset} frames is beyond 1000000"),
+                ));
+            }
+        }
+        let mouth = match cj.masks.mouth {
+            None => None,
+            Some(v) if !(0..=255).contains(&v) => {
+                return Err(Error::invalid(
+                    &capture_path,
+                    "masks.mouth",
+                    format!("a mask value must be 0..255, found {v}"),
+                ));
+            }
+            Some(v) => {
+                let v = v as u8;
+                let clash = match mask_mode {
+                    MaskMode::PerArch { upper, lower } => {
+                        (v == upper || v == lower).then(|| format!("it is an arch's label ({v})"))
+                    }
+                    MaskMode::Combined => (v >= 128)
+                        .then(|| format!("{v} would count as teeth: it must be below 128")),
+                };
+                if let Some(why) = clash {
+                    return Err(Error::invalid(&capture_path, "masks.mouth", why));
+                }
+                Some(v)
+            }
+        };
         let mut cameras = Vec::with_capacity(cj.cameras.len());
         let mask_dir = inside("masks.dir", &cj.masks.dir)?;
         for (i, name) in cj.cameras.iter().enumerate() {
             let camera_file = inside(&format!("cameras[{i}]"), &format!("cameras/{name}.json"))?;
             let calibrated = read_camera(&camera_file, name)?;
-            let (mask_size, frames_present) = scan_masks(&mask_dir.join(name), mask_mode)?;
+            let (mask_size, files_present) = scan_masks(&mask_dir.join(name), mask_mode)?;
+            let offset = offsets.get(name).copied().unwrap_or(0);
+            let frames_present = files_present
+                .into_iter()
+                .filter_map(|f| u32::try_from(f as i64 - offset).ok())
+                .collect();
             let mask_size = mask_size
                 .map(|size| reduced_size(size, options.mask_reduce, &mask_dir.join(name)))
                 .transpose()?;
@@ -234,6 +305,7 @@ impl Capture {
                 calibrated,
                 mask_size,
                 frames_present,
+                offset,
             });
         }
         let first = cj.frames.first;
@@ -298,6 +370,8 @@ impl Capture {
             mandible,
             mask_dir,
             mask_mode,
+            mouth,
+            notes,
             mask_reduce: options.mask_reduce.max(1),
             init: None,
             gt: None,
@@ -331,10 +405,13 @@ impl Capture {
         }
     }
 
+    /// The mask file of the capture's frame `frame` for a camera (through its offset).
     pub fn mask_path(&self, camera: usize, frame: u32) -> PathBuf {
+        let cam = &self.cameras[camera];
+        let file = cam.file_frame(frame).unwrap_or(frame);
         self.mask_dir
-            .join(&self.cameras[camera].calibrated.name)
-            .join(format!("{frame:06}.png"))
+            .join(&cam.calibrated.name)
+            .join(format!("{file:06}.png"))
     }
 
     /// Decode the masks of one frame, as they are (see [`CaptureCamera::mask_camera`]).

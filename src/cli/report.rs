@@ -8,6 +8,13 @@ use jawtrack::synth::SynthReport;
 use jawtrack::track::score::{ScoreReport, Stats};
 use jawtrack::track::{Status, Summary};
 
+/// What opening the capture noticed but did not refuse, on stderr.
+pub fn notes(c: &Capture) {
+    for note in &c.notes {
+        eprintln!("warning: {note}");
+    }
+}
+
 pub fn capture(c: &Capture) {
     println!("capture {}: valid", c.dir.display());
     let last = c.first_frame + c.frame_count - 1;

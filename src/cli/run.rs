@@ -24,6 +24,7 @@ pub fn open_and_check(
 ) -> anyhow::Result<Capture> {
     let capture = Capture::open_with(dir, options)
         .with_context(|| format!("invalid capture {}", dir.display()))?;
+    super::report::notes(&capture);
     if decode_all {
         let bar = super::progress_bar(capture.frame_count as u64, "decoding masks");
         for frame in capture.frames() {

@@ -41,6 +41,7 @@ pub struct Args {
 pub fn run(a: Args) -> anyhow::Result<()> {
     let capture = Capture::open_with(&a.capture, a.load.open_options())
         .with_context(|| format!("invalid capture {}", a.capture.display()))?;
+    super::report::notes(&capture);
     let options = SessionOptions {
         frames: a
             .frames

@@ -35,6 +35,7 @@ pub(super) fn write_capture(
         frames: FramesJson {
             first: 0,
             count: opts.frames,
+            offsets: None,
         },
         meshes: MeshesJson {
             upper: "meshes/upper.obj".into(),
@@ -50,12 +51,14 @@ pub(super) fn write_capture(
                 mode: "per-arch".into(),
                 upper: Some(UPPER_LABEL as i64),
                 lower: Some(LOWER_LABEL as i64),
+                mouth: None,
             },
             MaskKind::Combined => MasksJson {
                 dir: "masks".into(),
                 mode: "combined".into(),
                 upper: None,
                 lower: None,
+                mouth: None,
             },
         },
     };

@@ -8,8 +8,11 @@ use crate::capture::{ArchPoses, Capture, FrameMasks, write_atomic};
 use crate::energy::raster::{CLASS_BODY, CLASS_BOI, render_labels};
 use crate::error::{Error, Result};
 
-/// The capture's video frame for a camera, if it has one (images/<camera>/<frame>.png|jpg).
-fn video_frame(capture: &Capture, camera: &str, frame: u32) -> Option<PathBuf> {
+/// The capture's video frame for a camera, if it has one (images/<camera>/<file>.png|jpg, the
+/// file number through the camera's offset).
+fn video_frame(capture: &Capture, camera: usize, frame: u32) -> Option<PathBuf> {
+    let cam = &capture.cameras[camera];
+    let (camera, frame) = (&cam.calibrated.name, cam.file_frame(frame)?);
     ["png", "jpg", "jpeg"]
         .iter()
         .map(|ext| {
@@ -42,7 +45,7 @@ pub fn write_overlays(
             ],
         );
         let (w, h) = (cam.width, cam.height);
-        let mut rgb = match video_frame(capture, name, masks.frame) {
+        let mut rgb = match video_frame(capture, k, masks.frame) {
             Some(path) => image::open(&path)
                 .map_err(|e| Error::Image {
                     path: path.clone(),
