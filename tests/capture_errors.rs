@@ -658,3 +658,62 @@ fn the_mouth_label_is_checked() {
     });
     assert_mentions(&error_of(&dir), &["`masks.mouth`", "below 128"]);
 }
+
+/// Found by hostile input (bf99878): each of these was accepted without a word.
+#[test]
+fn silently_accepted_inputs_are_named() {
+    // Grey + alpha per-arch masks: the spec's per-arch masks are single-channel.
+    let (_t, dir) = fresh_capture();
+    image::DynamicImage::ImageLumaA8(image::ImageBuffer::new(960, 540))
+        .save(dir.join("masks/cam0/000001.png"))
+        .unwrap();
+    assert_mentions(&error_of(&dir), &["000001.png", "single-channel"]);
+    // A focal length of 1e308 and a 1x1 image.
+    let (_t, dir) = fresh_capture();
+    edit_json(&dir.join("cameras/cam0.json"), |v| v["fx"] = 1e308.into());
+    assert_mentions(&error_of(&dir), &["cam0.json", "`fx`", "beyond"]);
+    let (_t, dir) = fresh_capture();
+    edit_json(&dir.join("cameras/cam0.json"), |v| {
+        v["width"] = 1.into();
+        v["height"] = 1.into();
+    });
+    assert_mentions(
+        &error_of(&dir),
+        &["cam0.json", "`width/height`", "8 to 65536"],
+    );
+    // Ground truth of another format, and a frame given twice.
+    let (_t, dir) = fresh_capture();
+    edit_json(&dir.join("gt/poses.json"), |v| v["format"] = "x".into());
+    assert_mentions(&error_of(&dir), &["poses.json", "`format`", "\"x\""]);
+    let (_t, dir) = fresh_capture();
+    edit_json(&dir.join("gt/poses.json"), |v| {
+        let first = v["frames"][0].clone();
+        v["frames"].as_array_mut().unwrap().push(first);
+    });
+    assert_mentions(&error_of(&dir), &["poses.json", ".frame`", "given twice"]);
+}
+
+/// Found by hostile input (bf99878): a 0-byte OBJ was reported as "no group named `boi`".
+#[test]
+fn an_empty_mesh_file_says_it_has_no_faces() {
+    let (_t, dir) = fresh_capture();
+    std::fs::write(dir.join("meshes/upper.obj"), "").unwrap();
+    assert_mentions(
+        &error_of(&dir),
+        &["upper.obj", "`faces`", "no faces (0 vertices)"],
+    );
+}
+
+/// Found by hostile input (bf99878): `synth --frames 1000000000` grew to 4.6 GB and aborted.
+#[test]
+fn synth_refuses_a_frame_count_beyond_its_bound() {
+    let t = tempfile::tempdir().unwrap();
+    let out = std::process::Command::new(env!("CARGO_BIN_EXE_jawtrack"))
+        .args(["synth", "--frames", "1000000000"])
+        .arg(t.path().join("c"))
+        .output()
+        .unwrap();
+    let err = String::from_utf8_lossy(&out.stderr);
+    assert_eq!(out.status.code(), Some(2), "{err}");
+    assert_mentions(&err, &["--frames", "1..=100000"]);
+}

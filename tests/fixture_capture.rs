@@ -21,7 +21,11 @@ fn reads_what_another_program_wrote() {
     assert_eq!(c.camera_names(), ["left", "right"]);
     assert_eq!(c.mask_mode, MaskMode::PerArch { upper: 1, lower: 2 });
     // Its own field (`producer`) is noted, not refused: the spec lets writers add fields.
-    assert!(c.notes.len() == 1 && c.notes[0].contains("`producer`"), "{:?}", c.notes);
+    assert!(
+        c.notes.len() == 1 && c.notes[0].contains("`producer`"),
+        "{:?}",
+        c.notes
+    );
     assert_eq!((c.upper.positions.len(), c.upper.triangles.len()), (8, 12));
     assert_eq!(
         c.upper.boi,

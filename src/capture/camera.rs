@@ -12,13 +12,21 @@ pub fn read_camera(path: &Path, name: &str) -> Result<Camera> {
     camera_from_json(&cj, path, name)
 }
 
+/// The smallest image side: a mask of fewer pixels says nothing about a pose.
+const MIN_SIDE: i64 = 8;
+/// The longest focal length (pixels): a 1000 mm lens on a 1 µm pixel.
+const MAX_FOCAL_PX: f64 = 1e6;
+
 /// Validate a camera document (`path` names it in errors) and build the camera.
 pub fn camera_from_json(cj: &CameraJson, path: &Path, name: &str) -> Result<Camera> {
-    if cj.width <= 0 || cj.height <= 0 || cj.width > 1 << 16 || cj.height > 1 << 16 {
+    if cj.width < MIN_SIDE || cj.height < MIN_SIDE || cj.width > 1 << 16 || cj.height > 1 << 16 {
         return Err(Error::invalid(
             path,
             "width/height",
-            format!("image size {}x{} is not valid", cj.width, cj.height),
+            format!(
+                "image size {}x{} is not valid: each side must be {MIN_SIDE} to 65536 pixels",
+                cj.width, cj.height
+            ),
         ));
     }
     for (field, v) in [("fx", cj.fx), ("fy", cj.fy), ("cx", cj.cx), ("cy", cj.cy)] {
@@ -30,6 +38,22 @@ pub fn camera_from_json(cj: &CameraJson, path: &Path, name: &str) -> Result<Came
                 path,
                 field,
                 format!("the focal length must be positive, found {v}"),
+            ));
+        }
+        if v > MAX_FOCAL_PX {
+            return Err(Error::invalid(
+                path,
+                field,
+                format!("a focal length of {v} px is beyond {MAX_FOCAL_PX} px: not a camera"),
+            ));
+        }
+    }
+    for (field, v, side) in [("cx", cj.cx, cj.width), ("cy", cj.cy, cj.height)] {
+        if v.abs() > 10.0 * side as f64 {
+            return Err(Error::invalid(
+                path,
+                field,
+                format!("the principal point {v} lies more than ten image sides away"),
             ));
         }
     }

@@ -118,7 +118,7 @@ pub fn mask_header(path: &Path, mode: MaskMode) -> Result<(u32, u32)> {
     };
     let decoder = open_image(path)?.into_decoder().map_err(image_error)?;
     let colour = decoder.color_type();
-    let single_channel = matches!(colour, image::ColorType::L8 | image::ColorType::La8);
+    let single_channel = colour == image::ColorType::L8;
     if matches!(mode, MaskMode::PerArch { .. }) && !single_channel {
         return Err(per_arch_format_error(path, colour));
     }
@@ -129,7 +129,9 @@ fn per_arch_format_error(path: &Path, colour: image::ColorType) -> Error {
     Error::invalid(
         path,
         "pixel format",
-        format!("per-arch masks must be 8-bit single-channel PNGs, found {colour:?}"),
+        format!(
+            "per-arch masks must be 8-bit single-channel (greyscale) PNGs, found {colour:?} (a palette PNG reads as colour)"
+        ),
     )
 }
 
@@ -143,7 +145,6 @@ pub fn decode_mask(path: &Path, mode: MaskMode) -> Result<LabelMask> {
     let (width, height) = (img.width(), img.height());
     let grey = match (img, mode) {
         (image::DynamicImage::ImageLuma8(g), _) => g.into_raw(),
-        (image::DynamicImage::ImageLumaA8(g), _) => g.pixels().map(|p| p.0[0]).collect(),
         (other, MaskMode::Combined) => other.to_luma8().into_raw(),
         (other, MaskMode::PerArch { .. }) => {
             return Err(per_arch_format_error(path, other.color()));

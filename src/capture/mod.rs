@@ -683,6 +683,27 @@ pub fn read_pose_file(path: &Path) -> Result<Pose> {
 /// Read gt/poses.json or a tracks.json (frame, upper, lower are required).
 pub fn read_poses(path: &Path) -> Result<Vec<FramePoses>> {
     let tj: TracksJson = read_json(path, "poses file")?;
+    if tj.format != json::TRACKS_FORMAT {
+        return Err(Error::invalid(
+            path,
+            "format",
+            format!(
+                "expected \"{}\", found \"{}\"",
+                json::TRACKS_FORMAT,
+                tj.format
+            ),
+        ));
+    }
+    let mut seen = BTreeSet::new();
+    for (i, f) in tj.frames.iter().enumerate() {
+        if !seen.insert(f.frame) {
+            return Err(Error::invalid(
+                path,
+                format!("frames[{i}].frame"),
+                format!("frame {} is given twice", f.frame),
+            ));
+        }
+    }
     tj.frames
         .iter()
         .enumerate()

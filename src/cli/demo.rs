@@ -17,7 +17,7 @@ pub struct Args {
     #[arg(long)]
     pub force: bool,
     /// Number of frames.
-    #[arg(long, default_value_t = 48)]
+    #[arg(long, default_value_t = 48, value_parser = clap::value_parser!(u32).range(1..=100_000))]
     pub frames: u32,
     /// Random seed.
     #[arg(long, default_value_t = 0)]

@@ -9,7 +9,7 @@ pub struct Args {
     /// Folder to write the capture to (must not exist, unless --force).
     pub out: PathBuf,
     /// Number of frames (24 per second).
-    #[arg(long, default_value_t = 48)]
+    #[arg(long, default_value_t = 48, value_parser = clap::value_parser!(u32).range(1..=100_000))]
     pub frames: u32,
     /// Random seed: the same seed writes the same capture.
     #[arg(long, default_value_t = 0)]

@@ -95,6 +95,15 @@ impl Mesh {
                 ));
             }
         };
+        // Before the boundary of interest is looked for: an empty file is not "a mesh without
+        // the group".
+        if raw.triangles.is_empty() {
+            return Err(Error::invalid(
+                path,
+                "faces",
+                format!("the mesh has no faces ({} vertices)", raw.positions.len()),
+            ));
+        }
         let boi_flags = match boi {
             BoiSource::None => vec![false; raw.triangles.len()],
             BoiSource::GroupIfPresent(name) => {

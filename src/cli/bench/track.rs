@@ -22,7 +22,7 @@ pub struct TrackArgs {
     #[arg(long, value_delimiter = ',', default_value = "1,2,3")]
     seeds: Vec<u64>,
     /// Frames per capture.
-    #[arg(long, default_value_t = 34)]
+    #[arg(long, default_value_t = 34, value_parser = clap::value_parser!(u32).range(1..=100_000))]
     frames: u32,
     /// Mask kind.
     #[arg(long, value_enum, default_value_t = MaskKindArg::PerArch)]
