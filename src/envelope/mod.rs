@@ -27,6 +27,13 @@ pub(crate) mod pose_serde {
 
     pub fn deserialize<'de, D: Deserializer<'de>>(d: D) -> Result<Pose, D::Error> {
         let pj = PoseJson::deserialize(d)?;
+        let limit = crate::capture::json::MAX_TRANSLATION_MM;
+        if pj.translation.iter().any(|t| !t.is_finite() || t.abs() > limit) {
+            return Err(serde::de::Error::custom(format!(
+                "translation: {:?} is not within {limit} mm",
+                pj.translation
+            )));
+        }
         let rotation =
             Pose::rotation_from_rows(&pj.rotation, crate::capture::json::ROTATION_TOLERANCE)
                 .ok_or_else(|| serde::de::Error::custom("rotation: not a rotation matrix"))?;
