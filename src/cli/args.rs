@@ -184,17 +184,19 @@ impl CameraRigArgs {
     }
 }
 
-/// A `--settings` argument: a JSON file, or the JSON itself when the argument starts with `{`
-/// (errors then name `--settings` where they would name the file).
-pub fn read_settings<T: serde::de::DeserializeOwned>(
-    arg: &std::path::Path,
+/// Settings from a `--settings` argument: a JSON file, or the JSON itself when the argument
+/// starts with `{` (errors then name `--settings` where they would name the file); with the
+/// name its errors go by.
+fn read_settings<'a, T: serde::de::DeserializeOwned>(
+    arg: &'a Path,
     what: &str,
-) -> jawtrack::error::Result<T> {
+) -> anyhow::Result<(T, &'a Path)> {
     match arg.to_str().map(str::trim_start) {
         Some(text) if text.starts_with('{') => {
-            jawtrack::capture::json::parse_json(text, std::path::Path::new("--settings"))
+            let source = Path::new("--settings");
+            Ok((jawtrack::capture::json::parse_json(text, source)?, source))
         }
-        _ => jawtrack::capture::json::read_json(arg, what),
+        _ => Ok((jawtrack::capture::json::read_json(arg, what)?, arg)),
     }
 }
 
@@ -203,8 +205,9 @@ pub fn track_settings(arg: Option<&Path>) -> anyhow::Result<jawtrack::track::Tra
     let Some(arg) = arg else {
         return Ok(Default::default());
     };
-    let settings: jawtrack::track::TrackSettings = read_settings(arg, "settings file")?;
-    settings.validate_from(settings_source(arg))?;
+    let (settings, source): (jawtrack::track::TrackSettings, _) =
+        read_settings(arg, "settings file")?;
+    settings.validate_from(source)?;
     Ok(settings)
 }
 
@@ -213,17 +216,9 @@ pub fn rig_settings(arg: Option<&Path>) -> anyhow::Result<jawtrack::rig::RigSett
     let Some(arg) = arg else {
         return Ok(Default::default());
     };
-    let settings: jawtrack::rig::RigSettings = read_settings(arg, "rig settings")?;
-    settings.validate(settings_source(arg))?;
+    let (settings, source): (jawtrack::rig::RigSettings, _) = read_settings(arg, "rig settings")?;
+    settings.validate(source)?;
     Ok(settings)
-}
-
-/// What errors call a `--settings` argument: its file, or `--settings` for inline JSON.
-fn settings_source(arg: &Path) -> &Path {
-    match arg.to_str().map(str::trim_start) {
-        Some(text) if text.starts_with('{') => Path::new("--settings"),
-        _ => arg,
-    }
 }
 
 /// `--frames A..B` (B excluded) or `A..=B`, either end optional, within the capture's frames.

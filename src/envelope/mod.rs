@@ -28,7 +28,11 @@ pub(crate) mod pose_serde {
     pub fn deserialize<'de, D: Deserializer<'de>>(d: D) -> Result<Pose, D::Error> {
         let pj = PoseJson::deserialize(d)?;
         let limit = crate::capture::json::MAX_TRANSLATION_MM;
-        if pj.translation.iter().any(|t| !t.is_finite() || t.abs() > limit) {
+        if pj
+            .translation
+            .iter()
+            .any(|t| !t.is_finite() || t.abs() > limit)
+        {
             return Err(serde::de::Error::custom(format!(
                 "translation: {:?} is not within {limit} mm",
                 pj.translation
