@@ -717,3 +717,24 @@ fn synth_refuses_a_frame_count_beyond_its_bound() {
     assert_eq!(out.status.code(), Some(2), "{err}");
     assert_mentions(&err, &["--frames", "1..=100000"]);
 }
+
+/// Found by hostile input (bf99878): a `.ply` pointed at another file printed its first line
+/// whole. Errors quote at most a short, printable token of a foreign file.
+#[test]
+fn a_foreign_file_is_not_echoed_in_errors() {
+    let (_t, dir) = fresh_capture();
+    let secret = "root:x:0:0:root:/root:/bin/bash-with-a-long-tail-of-private-text-".repeat(4);
+    std::fs::write(
+        dir.join("meshes/upper.ply"),
+        format!("{secret}\n{secret}\n"),
+    )
+    .unwrap();
+    edit_json(&dir.join("capture.json"), |v| {
+        v["meshes"]["upper"] = "meshes/upper.ply".into();
+        v["boi"] =
+            serde_json::json!({"upper": "meshes/upper.boi.json", "lower": "meshes/lower.boi.json"});
+    });
+    let e = error_of(&dir);
+    assert_mentions(&e, &["upper.ply", "not a readable PLY file"]);
+    assert!(!e.contains(&secret[..80]), "{e}");
+}

@@ -60,9 +60,38 @@ pub fn read_text(path: &Path, what: &str) -> Result<String> {
     Ok(text)
 }
 
+/// A short, printable token of a file's text for an error message: a file pointed at by
+/// mistake (or on purpose) is not echoed whole.
+pub fn quote(text: &str) -> String {
+    const MAX: usize = 60;
+    let mut out: String = text
+        .chars()
+        .take(MAX)
+        .map(|c| {
+            if c.is_ascii_graphic() || c == ' ' {
+                c
+            } else {
+                '?'
+            }
+        })
+        .collect();
+    if text.chars().count() > MAX {
+        out.push('…');
+    }
+    out
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    #[test]
+    fn quotes_are_short_and_printable() {
+        assert_eq!(quote("1.5e"), "1.5e");
+        assert_eq!(quote("a\u{0}b\nc"), "a?b?c");
+        let long = "root:x:0:0:root:/root:/bin/bash daemon:x:1:1";
+        assert_eq!(quote(&long.repeat(2)).chars().count(), 61);
+    }
 
     #[cfg(unix)]
     #[test]

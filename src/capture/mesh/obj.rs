@@ -7,6 +7,7 @@ use std::io::Write;
 use std::path::Path;
 
 use super::{Mesh, RawMesh};
+use crate::capture::read::quote;
 use crate::error::{Error, Result};
 
 const NO_TAG: u32 = u32::MAX;
@@ -41,7 +42,7 @@ fn parse_obj(text: &str, path: &Path) -> Result<RawMesh> {
                         Error::invalid(path, at(), "a vertex needs three coordinates")
                     })?;
                     *c = w.parse().map_err(|_| {
-                        Error::invalid(path, at(), format!("`{w}` is not a number"))
+                        Error::invalid(path, at(), format!("`{}` is not a number", quote(w)))
                     })?;
                 }
                 mesh.positions.push(p);
@@ -51,7 +52,11 @@ fn parse_obj(text: &str, path: &Path) -> Result<RawMesh> {
                 for w in words {
                     let idx = w.split('/').next().unwrap_or("");
                     let i: i64 = idx.parse().map_err(|_| {
-                        Error::invalid(path, at(), format!("`{w}` is not a vertex reference"))
+                        Error::invalid(
+                            path,
+                            at(),
+                            format!("`{}` is not a vertex reference", quote(w)),
+                        )
                     })?;
                     let n = mesh.positions.len() as i64;
                     let resolved = if i > 0 {

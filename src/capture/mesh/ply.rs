@@ -6,6 +6,7 @@ use std::path::Path;
 use ply_rs_bw::{parser::Parser, ply::Property};
 
 use super::RawMesh;
+use crate::capture::read::quote;
 use crate::error::{Error, Result};
 
 fn scalar(p: &Property) -> Option<f64> {
@@ -81,7 +82,13 @@ pub(crate) fn read_ply(path: &Path) -> Result<RawMesh> {
     check_claimed_counts(path, &mut reader, len)?;
     let ply = Parser::<ply_rs_bw::ply::DefaultElement>::new()
         .read_ply(&mut reader)
-        .map_err(|e| Error::invalid(path, "file", format!("not a readable PLY file: {e}")))?;
+        .map_err(|e| {
+            Error::invalid(
+                path,
+                "file",
+                format!("not a readable PLY file: {}", quote(&e.to_string())),
+            )
+        })?;
     let vertices = ply
         .payload
         .get("vertex")

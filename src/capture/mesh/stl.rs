@@ -3,6 +3,7 @@
 use std::path::Path;
 
 use super::RawMesh;
+use crate::capture::read::quote;
 use crate::error::{Error, Result};
 
 /// A binary STL header gives its triangle count, and the reader allocates for it: a count the
@@ -43,8 +44,13 @@ fn check_claimed_size(path: &Path, file: &mut std::fs::File, len: u64) -> Result
 pub(crate) fn read_stl(path: &Path) -> Result<RawMesh> {
     let (mut file, len) = crate::capture::read::open_input(path, "mesh")?;
     check_claimed_size(path, &mut file, len)?;
-    let stl = stl_io::read_stl(&mut file)
-        .map_err(|e| Error::invalid(path, "file", format!("not a readable STL file: {e}")))?;
+    let stl = stl_io::read_stl(&mut file).map_err(|e| {
+        Error::invalid(
+            path,
+            "file",
+            format!("not a readable STL file: {}", quote(&e.to_string())),
+        )
+    })?;
     let triangles: Vec<[u32; 3]> = stl
         .faces
         .iter()
