@@ -46,7 +46,7 @@ fn masks_are_used_as_seen_and_models_are_drawn_through_the_lens() {
     let c = fixture();
     let m = c.load_masks(0).unwrap();
     for k in 0..2 {
-        let raw = decode_mask(&c.mask_path(k, 0), c.mask_mode).unwrap();
+        let raw = decode_mask(&c.mask_path(k, 0), c.mask_mode, c.mouth).unwrap();
         assert!(
             m.masks[k].as_ref() == Some(&raw),
             "camera {k}: mask as written"

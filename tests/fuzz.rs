@@ -194,7 +194,7 @@ proptest! {
         std::fs::write(&path, apply(&seed, &e)).unwrap();
         let mode = if combined { MaskMode::Combined } else { MaskMode::PerArch { upper: 1, lower: 2 } };
         let _ = jawtrack::capture::masks::mask_header(&path, mode);
-        let _ = jawtrack::capture::masks::decode_mask(&path, mode);
+        let _ = jawtrack::capture::masks::decode_mask(&path, mode, None);
     }
 
     #[test]

@@ -30,10 +30,17 @@ fn gpu(scene: Scene, region: Region) -> Option<GpuEnergy> {
 }
 
 fn rect_mask(x0: u32, y0: u32, x1: u32, y1: u32) -> FrameMasks {
+    labelled_mask(&[((x0, y0, x1, y1), 1)])
+}
+
+/// A 100x80 mask with each rectangle (x0, y0, x1, y1) set to its label bits.
+fn labelled_mask(rects: &[((u32, u32, u32, u32), u8)]) -> FrameMasks {
     let mut data = vec![0u8; 100 * 80];
-    for y in y0..y1 {
-        for x in x0..x1 {
-            data[(y * 100 + x) as usize] = 1;
+    for &((x0, y0, x1, y1), label) in rects {
+        for y in y0..y1 {
+            for x in x0..x1 {
+                data[(y * 100 + x) as usize] = label;
+            }
         }
     }
     FrameMasks {
@@ -95,6 +102,55 @@ fn exact_counts_on_a_hand_countable_scene() {
     }
 }
 
+/// The over-mouth bins, counted by hand as in src/energy/cpu.rs: teeth on the square's
+/// columns 40..60, the mouth interior on 60..80; moved 5 px right, the square draws 100 pixels
+/// over the mouth (50 BOI). Every engine counts the same twelve bins.
+#[test]
+fn exact_over_mouth_counts_on_a_hand_countable_scene() {
+    let scene = Scene {
+        cameras: vec![Some(camera())],
+        upper: square(),
+        lower: nothing(),
+        mode: MaskMode::PerArch { upper: 1, lower: 2 },
+    };
+    let masks = labelled_mask(&[
+        ((40, 30, 60, 50), 1),
+        ((60, 30, 80, 50), jawtrack::capture::masks::MOUTH_BIT),
+    ]);
+    let at = |dx: f64| ArchPoses {
+        upper: Pose::from_translation(Vector3::new(dx, 0.0, 100.0)),
+        lower: Pose::from_translation(Vector3::new(0.0, 0.0, -1000.0)),
+    };
+    let poses = [at(0.0), at(5.0), at(-5.0)];
+    let mut cpu = CpuEnergy::new(scene.clone());
+    cpu.set_frame(&masks).unwrap();
+    let expected = cpu.evaluate(Arch::Upper, &poses).unwrap();
+    assert_eq!(expected[1].over_mouth(), 100);
+    assert_eq!(
+        expected[1].cameras[0].bin(jawtrack::energy::MASK_MOUTH, 2),
+        50
+    );
+    assert_eq!(expected[2].over_mouth(), 0);
+    for region in [Region::Footprint, Region::FullFrame] {
+        let Some(mut g) = gpu(scene.clone(), region) else {
+            return;
+        };
+        g.set_frame(&masks).unwrap();
+        assert_eq!(
+            g.evaluate(Arch::Upper, &poses).unwrap(),
+            expected,
+            "{region:?}"
+        );
+    }
+    let mut readback = GpuEnergy::readback_baseline(scene).unwrap();
+    readback.set_frame(&masks).unwrap();
+    assert_eq!(
+        readback.evaluate(Arch::Upper, &poses).unwrap(),
+        expected,
+        "readback"
+    );
+}
+
 /// 20 poses near the truth: up to ±1.5° and ±1.5 mm on each of the six parameters.
 fn random_candidates(truth: &ArchPoses, arch: Arch, seed: u64) -> Vec<ArchPoses> {
     let mut rng = rand_chacha::ChaCha8Rng::seed_from_u64(seed);
@@ -152,7 +208,8 @@ fn compare_on_synthetic(capture: &std::path::Path, what: &str) {
             let er = readback.evaluate(arch, &cands).unwrap();
             for (a, b) in ef.iter().zip(&er) {
                 for (x, y) in a.cameras.iter().zip(&b.cameras) {
-                    // The baseline sees only its own mask: compare the paper's six bins.
+                    // The baseline sees only its own mask and the mouth's: compare the paper's
+                    // six bins and the over-mouth count.
                     let (xp, yp) = (x.paper_bins(), y.paper_bins());
                     for bin in 0..6 {
                         assert!(
@@ -160,6 +217,10 @@ fn compare_on_synthetic(capture: &std::path::Path, what: &str) {
                             "histogram {xp:?} vs readback {yp:?}"
                         );
                     }
+                    assert!(
+                        x.over_mouth().abs_diff(y.over_mouth()) <= 2,
+                        "histogram {x:?} vs readback {y:?}"
+                    );
                 }
             }
             // Footprint and full-frame tiles use the same vertex arithmetic (positions are
@@ -168,7 +229,7 @@ fn compare_on_synthetic(capture: &std::path::Path, what: &str) {
             // resolves with float rounding that depends on where the tile lies: a pixel or two.
             for (k, (a, b)) in eg.iter().zip(&ef).enumerate() {
                 for (cam, (x, y)) in a.cameras.iter().zip(&b.cameras).enumerate() {
-                    for bin in 0..9 {
+                    for bin in 0..jawtrack::energy::BINS {
                         let diff = x.bins[bin].abs_diff(y.bins[bin]);
                         worst_region = worst_region.max(diff);
                         assert!(
@@ -186,6 +247,7 @@ fn compare_on_synthetic(capture: &std::path::Path, what: &str) {
                         ("uncovered", ga.uncovered(), cb.uncovered()),
                         ("BOI outside", ga.boi_outside(), cb.boi_outside()),
                         ("cross", ga.cross(), cb.cross()),
+                        ("over mouth", ga.over_mouth(), cb.over_mouth()),
                     ] {
                         assert!(
                             (g as f64 - c as f64).abs() <= tolerance,
@@ -200,7 +262,7 @@ fn compare_on_synthetic(capture: &std::path::Path, what: &str) {
                     // vertex within ~1e-4 px of the 1/256 snapping grid can snap either way, and
                     // depth near-ties where surfaces meet can resolve either way.
                     let tolerance = (0.001 * cb.mask_pixels() as f64).max(1.0);
-                    for bin in 0..9 {
+                    for bin in 0..jawtrack::energy::BINS {
                         let diff = (ga.bins[bin] as f64 - cb.bins[bin] as f64).abs();
                         compared += 1;
                         differing += (diff > 0.0) as usize;

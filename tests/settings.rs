@@ -130,6 +130,11 @@ fn every_search_rule_names_its_field_and_range() {
                 "search.cross_weight",
                 "from 0 to 1000",
             ),
+            (
+                r#"{"search":{"mouth_weight":2000}}"#,
+                "search.mouth_weight",
+                "from 0 to 1000",
+            ),
         ],
         track_error,
     );

@@ -92,6 +92,64 @@ fn synthesis_is_deterministic_per_seed() {
     assert!(err.contains("already exists"), "{err}");
 }
 
+/// The presets with lips label the visible mouth interior (`masks.mouth`) in either mask
+/// mode: the lip opening less the teeth, so the label never takes a tooth's pixel; without
+/// it (`--no-mouth`) the teeth pixels are those of the labelled masks.
+#[test]
+fn masks_label_the_mouth_interior_unless_told_not_to() {
+    use jawtrack::capture::masks::MOUTH_BIT;
+    use jawtrack::capture::{Capture, LOWER_BIT, UPPER_BIT};
+    use jawtrack::synth::MaskKind;
+    let t = tempfile::tempdir().unwrap();
+    for masks in [MaskKind::PerArch, MaskKind::Combined] {
+        let opts = |mouth| SynthOptions {
+            frames: 8,
+            seed: 3,
+            masks,
+            mouth,
+            ..SynthOptions::default()
+        };
+        let (with, without) = (
+            t.path().join(format!("{masks:?}-with")),
+            t.path().join(format!("{masks:?}-without")),
+        );
+        generate(&with, &opts(true), &|| {}).unwrap();
+        generate(&without, &opts(false), &|| {}).unwrap();
+        let (a, b) = (
+            Capture::open(&with).unwrap(),
+            Capture::open(&without).unwrap(),
+        );
+        assert_eq!(a.mouth, Some(jawtrack::synth::MOUTH_LABEL));
+        assert_eq!(b.mouth, None);
+        let mut mouth_pixels = 0;
+        for frame in [0, 4, 7] {
+            let (ma, mb) = (a.load_masks(frame).unwrap(), b.load_masks(frame).unwrap());
+            for (x, y) in ma.masks.iter().zip(&mb.masks) {
+                let (x, y) = (x.as_ref().unwrap(), y.as_ref().unwrap());
+                let teeth = |m: &jawtrack::capture::LabelMask| {
+                    m.data
+                        .iter()
+                        .map(|l| l & (UPPER_BIT | LOWER_BIT))
+                        .collect::<Vec<_>>()
+                };
+                assert_eq!(
+                    teeth(x),
+                    teeth(y),
+                    "{masks:?} frame {frame}: the label moved teeth"
+                );
+                assert!(x.data.iter().all(|&l| l & MOUTH_BIT == 0 || l == MOUTH_BIT));
+                assert_eq!(y.count(MOUTH_BIT), 0);
+                mouth_pixels += x.count(MOUTH_BIT);
+            }
+        }
+        // The mouth is open in these frames: its interior is seen in every camera.
+        assert!(
+            mouth_pixels > 3 * 3 * 200,
+            "{masks:?}: {mouth_pixels} mouth pixels"
+        );
+    }
+}
+
 #[test]
 fn another_rig_and_a_lens_are_written_as_given() {
     let t = tempfile::tempdir().unwrap();

@@ -111,6 +111,76 @@ fn a_short_clean_sequence_is_tracked_accurately() {
     assert!(!t.path().join("tracks.json.journal").exists());
 }
 
+/// A realistic capture whose masks label the visible mouth interior, once per test binary.
+fn labelled_capture() -> &'static Path {
+    static DIR: std::sync::OnceLock<tempfile::TempDir> = std::sync::OnceLock::new();
+    DIR.get_or_init(|| {
+        let t = tempfile::tempdir().unwrap();
+        let opts = SynthOptions {
+            frames: 4,
+            seed: 2,
+            preset: Preset::Realistic,
+            ..SynthOptions::default()
+        };
+        generate(&t.path().join("c"), &opts, &|| {}).unwrap();
+        t
+    })
+    .path()
+    .join("c")
+    .leak()
+}
+
+fn poses_of(path: &Path) -> Vec<serde_json::Value> {
+    let t: serde_json::Value =
+        serde_json::from_str(&std::fs::read_to_string(path).unwrap()).unwrap();
+    t["frames"]
+        .as_array()
+        .unwrap()
+        .iter()
+        .map(|f| serde_json::json!([f["upper"], f["lower"]]))
+        .collect()
+}
+
+/// The mouth label only adds the over-mouth term: with the paper's energy (`--energy paper`)
+/// a labelled capture tracks exactly as the same capture without its label, and with the
+/// full energy tracks.json reports the term.
+#[test]
+fn the_mouth_label_adds_a_term_and_changes_nothing_else() {
+    let t = tempfile::tempdir().unwrap();
+    let labelled = labelled_capture();
+    let unlabelled = t.path().join("unlabelled");
+    copy_dir(labelled, &unlabelled);
+    let cj = unlabelled.join("capture.json");
+    let mut v: serde_json::Value =
+        serde_json::from_str(&std::fs::read_to_string(&cj).unwrap()).unwrap();
+    assert!(
+        v["masks"]["mouth"].is_number(),
+        "the synthetic capture has a label"
+    );
+    v["masks"].as_object_mut().unwrap().remove("mouth");
+    std::fs::write(&cj, v.to_string()).unwrap();
+    let (a, b, c) = (
+        t.path().join("a.json"),
+        t.path().join("b.json"),
+        t.path().join("c.json"),
+    );
+    track(labelled, &a, &["--energy", "paper", "--frames", "0..3"]);
+    track(&unlabelled, &b, &["--energy", "paper", "--frames", "0..3"]);
+    assert_eq!(poses_of(&a), poses_of(&b));
+    track(labelled, &c, &["--frames", "0..3"]);
+    assert_ne!(poses_of(&a), poses_of(&c), "the term moves the poses");
+    let tracks: serde_json::Value =
+        serde_json::from_str(&std::fs::read_to_string(&c).unwrap()).unwrap();
+    let energy = &tracks["frames"][1]["energy"]["lower"];
+    assert!(energy["over_mouth"].is_u64(), "{energy}");
+    let unlabelled_tracks: serde_json::Value =
+        serde_json::from_str(&std::fs::read_to_string(&b).unwrap()).unwrap();
+    assert_eq!(
+        unlabelled_tracks["frames"][1]["energy"]["lower"]["over_mouth"],
+        0
+    );
+}
+
 #[test]
 fn an_interrupted_run_resumes_after_its_last_complete_frame() {
     let t = tempfile::tempdir().unwrap();

@@ -1,6 +1,7 @@
 //! Segmentation masks: decoded per frame into label masks (bit 0: upper arch, bit 1: lower
-//! arch) at the mask resolution (or 1/k of it, [`LabelMask::reduced`]), as the cameras saw
-//! them: with lens distortion, the energy draws the models through the lens.
+//! arch, bit 2: visible mouth interior) at the mask resolution (or 1/k of it,
+//! [`LabelMask::reduced`]), as the cameras saw them: with lens distortion, the energy draws
+//! the models through the lens.
 
 use std::path::Path;
 
@@ -8,6 +9,10 @@ use crate::error::{Error, Result};
 
 pub const UPPER_BIT: u8 = 1;
 pub const LOWER_BIT: u8 = 2;
+/// The visible mouth interior (`masks.mouth`): the camera sees no tooth there.
+pub const MOUTH_BIT: u8 = 4;
+/// Every label bit.
+const LABEL_BITS: u8 = UPPER_BIT | LOWER_BIT | MOUTH_BIT;
 
 /// How mask pixel values map to arches (capture.json `masks.mode`).
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
@@ -31,7 +36,12 @@ impl std::fmt::Display for MaskMode {
 }
 
 impl MaskMode {
-    pub fn label_of(&self, value: u8) -> u8 {
+    /// The label bits of a mask pixel's value; `mouth` is the value of the visible mouth
+    /// interior, when the masks label it (checked at open not to be an arch's value).
+    pub fn label_of(&self, value: u8, mouth: Option<u8>) -> u8 {
+        if mouth == Some(value) {
+            return MOUTH_BIT;
+        }
         match *self {
             MaskMode::PerArch { upper, lower } => {
                 if value == upper {
@@ -77,16 +87,16 @@ impl LabelMask {
         let mut data = Vec::with_capacity((w * h) as usize);
         for by in 0..h {
             for bx in 0..w {
-                let mut votes = [0u32; 4];
+                let mut votes = [0u32; LABEL_BITS as usize + 1];
                 for y in by * k..(by + 1) * k {
                     let row = (y * self.width) as usize;
                     for x in bx * k..(bx + 1) * k {
-                        votes[(self.data[row + x as usize] & 3) as usize] += 1;
+                        votes[(self.data[row + x as usize] & LABEL_BITS) as usize] += 1;
                     }
                 }
-                let most = *votes.iter().max().expect("four labels");
+                let most = *votes.iter().max().expect("labels");
                 let tied = votes.iter().filter(|&&v| v == most).count();
-                let label = (0..4u8)
+                let label = (0..=LABEL_BITS)
                     .filter(|&l| votes[l as usize] == most)
                     .nth((bx + by) as usize % tied)
                     .expect("a tied label");
@@ -136,8 +146,9 @@ fn per_arch_format_error(path: &Path, colour: image::ColorType) -> Error {
 }
 
 /// Decode a mask PNG into labels. Per-arch masks must be 8-bit single-channel (labels are
-/// exact values); combined masks may be any format and are converted to grey.
-pub fn decode_mask(path: &Path, mode: MaskMode) -> Result<LabelMask> {
+/// exact values); combined masks may be any format and are converted to grey. `mouth` is
+/// `masks.mouth`.
+pub fn decode_mask(path: &Path, mode: MaskMode, mouth: Option<u8>) -> Result<LabelMask> {
     let img = open_image(path)?.decode().map_err(|e| Error::Image {
         path: path.to_path_buf(),
         problem: e.to_string(),
@@ -153,7 +164,7 @@ pub fn decode_mask(path: &Path, mode: MaskMode) -> Result<LabelMask> {
     Ok(LabelMask {
         width,
         height,
-        data: grey.into_iter().map(|v| mode.label_of(v)).collect(),
+        data: grey.into_iter().map(|v| mode.label_of(v, mouth)).collect(),
     })
 }
 
@@ -190,6 +201,24 @@ mod tests {
             vec![1, 2, 0, 0, tie(1, 1, &[0, 1]), tie(2, 1, &[0, 2]),]
         );
         assert_eq!(m.clone().reduced(1), m);
+    }
+
+    #[test]
+    fn the_mouth_value_reads_as_its_own_label_and_survives_reduction() {
+        let per_arch = MaskMode::PerArch {
+            upper: 85,
+            lower: 170,
+        };
+        assert_eq!(per_arch.label_of(40, Some(40)), MOUTH_BIT);
+        assert_eq!(per_arch.label_of(40, None), 0);
+        assert_eq!(per_arch.label_of(85, Some(40)), UPPER_BIT);
+        assert_eq!(MaskMode::Combined.label_of(40, Some(40)), MOUTH_BIT);
+        assert_eq!(
+            MaskMode::Combined.label_of(200, Some(40)),
+            UPPER_BIT | LOWER_BIT
+        );
+        let m = mask(4, &[&[4, 4, 1, 0], &[4, 0, 1, 1]]);
+        assert_eq!(m.reduced(2).data, vec![MOUTH_BIT, UPPER_BIT]);
     }
 
     #[test]

@@ -423,7 +423,7 @@ impl Capture {
                 continue;
             }
             let path = self.mask_path(i, frame);
-            let mask = masks::decode_mask(&path, self.mask_mode)?;
+            let mask = masks::decode_mask(&path, self.mask_mode, self.mouth)?;
             let (w, h) = cam
                 .mask_size
                 .expect("a camera with mask files has a mask size");

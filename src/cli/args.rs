@@ -201,14 +201,35 @@ fn read_settings<'a, T: serde::de::DeserializeOwned>(
 }
 
 /// Tracking settings from `--settings` (defaults without it), checked field by field.
-pub fn track_settings(arg: Option<&Path>) -> anyhow::Result<jawtrack::track::TrackSettings> {
-    let Some(arg) = arg else {
-        return Ok(Default::default());
+pub fn track_settings(
+    arg: Option<&Path>,
+    energy: EnergyArg,
+) -> anyhow::Result<jawtrack::track::TrackSettings> {
+    let mut settings = match arg {
+        None => jawtrack::track::TrackSettings::default(),
+        Some(arg) => {
+            let (settings, source): (jawtrack::track::TrackSettings, _) =
+                read_settings(arg, "settings file")?;
+            settings.validate_from(source)?;
+            settings
+        }
     };
-    let (settings, source): (jawtrack::track::TrackSettings, _) =
-        read_settings(arg, "settings file")?;
-    settings.validate_from(source)?;
+    if energy == EnergyArg::Paper {
+        settings.search.cross_weight = 0.0;
+        settings.search.mouth_weight = 0.0;
+    }
     Ok(settings)
+}
+
+/// The objective the search minimises (`--energy`).
+#[derive(clap::ValueEnum, Clone, Copy, Debug, Default, PartialEq, Eq)]
+pub enum EnergyArg {
+    /// The paper's E plus the terms of our own at the settings' weights: cross-label (per-arch
+    /// masks) and over-mouth (masks that label the mouth interior).
+    #[default]
+    Full,
+    /// The paper's E alone (`cross_weight` and `mouth_weight` 0, whatever the settings say).
+    Paper,
 }
 
 /// Rig settings from `--settings` (defaults without it), checked field by field.

@@ -49,6 +49,8 @@ pub fn run(a: Args) -> anyhow::Result<()> {
         frames_per_segment: 6,
         rig: None,
         distortion: None,
+        mouth: true,
+        persistent_noise: false,
     };
     println!(
         "== 1. synthesise a {} capture: three cameras, half-resolution masks",
@@ -58,14 +60,18 @@ pub fn run(a: Args) -> anyhow::Result<()> {
     super::report::synth(&out, &report);
 
     println!("\n== 2. read it back");
-    let capture = super::run::open_and_check(&out, Default::default(), true)?;
+    let (capture, _) = super::run::open_and_check(&out, Default::default(), true)?;
     println!(
-        "{} cameras, frames {}..{}, meshes {} + {} triangles",
+        "{} cameras, frames {}..{}, meshes {} + {} triangles, {}",
         capture.cameras.len(),
         capture.first_frame,
         capture.first_frame + capture.frame_count,
         capture.upper.triangles.len(),
-        capture.lower.triangles.len()
+        capture.lower.triangles.len(),
+        match capture.mouth {
+            Some(_) => "masks label the visible mouth interior",
+            None => "teeth masks alone",
+        }
     );
 
     println!("\n== 3. track both arches from init.json, frame after frame");

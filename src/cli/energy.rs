@@ -93,14 +93,15 @@ pub fn default_poses(capture: &Capture, frame: u32) -> Option<ArchPoses> {
 }
 
 /// The header of `print_energy`'s table: the paper's terms, the cross-label count (pixels of
-/// the other arch covered by this one), and the paper's six bins (mask off/on x class).
-pub const TABLE_HEADER: &str = "arch   camera  mask_px  uncovered  boi_outside  total      cross  off/none off/body off/boi on/none on/body on/boi";
+/// the other arch covered by this one), the over-mouth count (mouth-interior pixels under the
+/// model) and the paper's six bins (mask off/on x class).
+pub const TABLE_HEADER: &str = "arch   camera  mask_px  uncovered  boi_outside  total      cross  mouth  off/none off/body off/boi on/none on/body on/boi";
 
 pub fn print_energy(arch: Arch, cameras: &[&str], e: &Energy, lambda: f64) {
     for (name, c) in cameras.iter().zip(&e.cameras) {
         let b = c.paper_bins();
         println!(
-            "{:<6} {:<7} {:>7}  {:>9}  {:>11}  {:>9.1}  {:>5}  {:>8} {:>8} {:>7} {:>7} {:>7} {:>6}",
+            "{:<6} {:<7} {:>7}  {:>9}  {:>11}  {:>9.1}  {:>5}  {:>5}  {:>8} {:>8} {:>7} {:>7} {:>7} {:>6}",
             arch.name(),
             name,
             c.mask_pixels(),
@@ -108,6 +109,7 @@ pub fn print_energy(arch: Arch, cameras: &[&str], e: &Energy, lambda: f64) {
             c.boi_outside(),
             c.total(lambda),
             c.cross(),
+            c.over_mouth(),
             b[0],
             b[1],
             b[2],
@@ -117,7 +119,7 @@ pub fn print_energy(arch: Arch, cameras: &[&str], e: &Energy, lambda: f64) {
         );
     }
     println!(
-        "{:<6} {:<7} {:>7}  {:>9}  {:>11}  {:>9.1}  {:>5}  area error {:.3}%",
+        "{:<6} {:<7} {:>7}  {:>9}  {:>11}  {:>9.1}  {:>5}  {:>5}  area error {:.3}%",
         arch.name(),
         "all",
         e.mask_pixels(),
@@ -125,6 +127,7 @@ pub fn print_energy(arch: Arch, cameras: &[&str], e: &Energy, lambda: f64) {
         e.boi_outside(),
         e.total(lambda),
         e.cross(),
+        e.over_mouth(),
         100.0 * e.area_error()
     );
 }

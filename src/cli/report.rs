@@ -15,19 +15,47 @@ pub fn notes(c: &Capture) {
     }
 }
 
-pub fn capture(c: &Capture) {
+/// A capture's summary; `pixels` (each camera's labelled pixels) when its masks were decoded.
+pub fn capture(c: &Capture, pixels: Option<&[super::run::LabelPixels]>) {
     println!("capture {}: valid", c.dir.display());
     let last = c.first_frame + c.frame_count - 1;
     println!(
-        "frames {}..={} ({}), masks {}",
-        c.first_frame, last, c.frame_count, c.mask_mode
+        "frames {}..={} ({}), masks {}, {}",
+        c.first_frame,
+        last,
+        c.frame_count,
+        c.mask_mode,
+        match c.mouth {
+            Some(v) => format!("visible mouth interior {v}"),
+            None => "no mouth label (the over-mouth term is off)".into(),
+        }
     );
-    println!("camera  image      mask       masks found  distortion");
-    for cam in &c.cameras {
+    let mean_px = |k: usize| match pixels {
+        None => "-".to_string(),
+        Some(p) => {
+            let [u, l, m] = p[k].mean();
+            match (c.mask_mode, c.mouth) {
+                (jawtrack::capture::MaskMode::Combined, Some(_)) => format!("{u:.0} / {m:.0}"),
+                (jawtrack::capture::MaskMode::Combined, None) => format!("{u:.0}"),
+                (_, Some(_)) => format!("{u:.0} / {l:.0} / {m:.0}"),
+                (_, None) => format!("{u:.0} / {l:.0}"),
+            }
+        }
+    };
+    println!(
+        "camera  image      mask       masks found  mean px per mask ({})  distortion",
+        match (c.mask_mode, c.mouth) {
+            (jawtrack::capture::MaskMode::Combined, Some(_)) => "teeth / mouth",
+            (jawtrack::capture::MaskMode::Combined, None) => "teeth",
+            (_, Some(_)) => "upper / lower / mouth",
+            (_, None) => "upper / lower",
+        }
+    );
+    for (i, cam) in c.cameras.iter().enumerate() {
         let k = &cam.calibrated;
         let in_range = cam.frames_present.range(c.first_frame..=last).count();
         println!(
-            "{:<6}  {}x{}  {:<9}  {:>5}/{:<5}  {}",
+            "{:<6}  {}x{}  {:<9}  {:>5}/{:<5}  {:<20}  {}",
             k.name,
             k.width,
             k.height,
@@ -36,6 +64,7 @@ pub fn capture(c: &Capture) {
                 .unwrap_or_else(|| "none".into()),
             in_range,
             c.frame_count,
+            mean_px(i),
             match (k.has_distortion(), k.lens_covers_the_image()) {
                 (false, _) => "no".to_string(),
                 (true, true) => "yes (models drawn through the lens)".to_string(),
@@ -104,17 +133,18 @@ pub fn synth(out: &Path, r: &SynthReport) {
         r.max_condylar_travel_mm
     );
     println!(
-        "camera  mask size  frames with mask  mean mask px (upper, lower)  visible share (upper, lower)"
+        "camera  mask size  frames with mask  mean mask px (upper, lower, mouth)  visible share (upper, lower)"
     );
     for c in &r.cameras {
         println!(
-            "{:<6}  {}x{}    {:>5}             {:>7.0} {:>7.0}             {:>5.1}% {:>5.1}%",
+            "{:<6}  {}x{}    {:>5}             {:>7.0} {:>7.0} {:>7.0}             {:>5.1}% {:>5.1}%",
             c.name,
             c.mask_size[0],
             c.mask_size[1],
             c.frames_with_mask,
             c.mean_mask_pixels[0],
             c.mean_mask_pixels[1],
+            c.mean_mouth_pixels,
             100.0 * c.visible_share[0],
             100.0 * c.visible_share[1]
         );

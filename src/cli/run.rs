@@ -3,7 +3,8 @@
 use std::path::Path;
 
 use anyhow::Context;
-use jawtrack::capture::{Capture, OpenOptions};
+use jawtrack::capture::masks::MOUTH_BIT;
+use jawtrack::capture::{Capture, LOWER_BIT, OpenOptions, UPPER_BIT};
 use jawtrack::synth::{self, SynthOptions, SynthReport};
 use jawtrack::track::{Session, SessionOptions, Summary};
 
@@ -21,21 +22,45 @@ pub fn open_and_check(
     dir: &Path,
     options: OpenOptions,
     decode_all: bool,
-) -> anyhow::Result<Capture> {
+) -> anyhow::Result<(Capture, Option<Vec<LabelPixels>>)> {
     let capture = Capture::open_with(dir, options)
         .with_context(|| format!("invalid capture {}", dir.display()))?;
     super::report::notes(&capture);
-    if decode_all {
-        let bar = super::progress_bar(capture.frame_count as u64, "decoding masks");
-        for frame in capture.frames() {
-            capture
-                .load_masks(frame)
-                .with_context(|| format!("invalid capture {}", dir.display()))?;
-            bar.inc(1);
-        }
-        bar.finish_and_clear();
+    if !decode_all {
+        return Ok((capture, None));
     }
-    Ok(capture)
+    let mut pixels = vec![LabelPixels::default(); capture.cameras.len()];
+    let bar = super::progress_bar(capture.frame_count as u64, "decoding masks");
+    for frame in capture.frames() {
+        let masks = capture
+            .load_masks(frame)
+            .with_context(|| format!("invalid capture {}", dir.display()))?;
+        for (p, mask) in pixels.iter_mut().zip(&masks.masks) {
+            let Some(mask) = mask else { continue };
+            p.masks += 1;
+            for (k, bit) in [UPPER_BIT, LOWER_BIT, MOUTH_BIT].into_iter().enumerate() {
+                p.pixels[k] += mask.count(bit);
+            }
+        }
+        bar.inc(1);
+    }
+    bar.finish_and_clear();
+    Ok((capture, Some(pixels)))
+}
+
+/// One camera's labelled pixels over the masks decoded: upper, lower (both alike with
+/// combined masks) and the visible mouth interior.
+#[derive(Debug, Clone, Default)]
+pub struct LabelPixels {
+    pub masks: u64,
+    pub pixels: [u64; 3],
+}
+
+impl LabelPixels {
+    /// Mean pixels per mask of each label.
+    pub fn mean(&self) -> [f64; 3] {
+        self.pixels.map(|p| p as f64 / self.masks.max(1) as f64)
+    }
 }
 
 /// Track a capture as `options` say, printing the engine chosen.

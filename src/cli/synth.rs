@@ -40,6 +40,14 @@ pub struct Args {
     pub frames_per_segment: u32,
     #[command(flatten)]
     pub rig: CameraRigArgs,
+    /// Masks label the teeth alone: no visible mouth interior (`masks.mouth`), as before it
+    /// was in the format.
+    #[arg(long)]
+    pub no_mouth: bool,
+    /// Segmentation errors that persist from frame to frame (as a tracked roto mask's do)
+    /// rather than being drawn afresh each frame.
+    #[arg(long)]
+    pub persistent_noise: bool,
     /// Print the report as JSON.
     #[arg(long)]
     pub json: bool,
@@ -58,6 +66,8 @@ pub fn run(a: Args) -> anyhow::Result<()> {
         frames_per_segment: a.frames_per_segment,
         rig: a.rig.rig.clone(),
         distortion: a.rig.distortion()?,
+        mouth: !a.no_mouth,
+        persistent_noise: a.persistent_noise,
     };
     let report = super::run::synthesise(&a.out, &opts)?;
     if a.json {

@@ -5,7 +5,7 @@ use jawtrack::capture::Capture;
 use jawtrack::energy::Region;
 use jawtrack::track::{SessionOptions, score_records};
 
-use super::args::{EngineArgs, LoadArgs, parse_frames, track_settings};
+use super::args::{EnergyArg, EngineArgs, LoadArgs, parse_frames, track_settings};
 
 #[derive(clap::Args)]
 pub struct Args {
@@ -36,6 +36,9 @@ pub struct Args {
     /// starts with `{`, e.g. '{"search": {"lambda": 1.0}}'.
     #[arg(long)]
     pub settings: Option<PathBuf>,
+    /// The objective: the paper's E with the terms of our own, or the paper's E alone.
+    #[arg(long, value_enum, default_value_t = EnergyArg::Full)]
+    pub energy: EnergyArg,
 }
 
 pub fn run(a: Args) -> anyhow::Result<()> {
@@ -53,7 +56,7 @@ pub fn run(a: Args) -> anyhow::Result<()> {
         overlays: a.overlays,
         resume: a.resume,
         force: a.force,
-        settings: track_settings(a.settings.as_deref())?,
+        settings: track_settings(a.settings.as_deref(), a.energy)?,
         ..SessionOptions::new(&a.output)
     };
     let summary = super::run::track(&capture, options)?;

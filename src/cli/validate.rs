@@ -12,7 +12,8 @@ pub struct Args {
 }
 
 pub fn run(a: Args) -> anyhow::Result<()> {
-    let capture = super::run::open_and_check(&a.capture, a.load.open_options(), !a.quick)?;
-    super::report::capture(&capture);
+    let (capture, pixels) =
+        super::run::open_and_check(&a.capture, a.load.open_options(), !a.quick)?;
+    super::report::capture(&capture, pixels.as_deref());
     Ok(())
 }

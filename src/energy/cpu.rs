@@ -14,6 +14,7 @@ use super::histogram;
 use super::raster::{self, Bounds, CLASS_BODY, CLASS_BOI, Placed, Target};
 use super::relevance::{LabelledTiles, Relevance};
 use super::{Counts, Energy, EnergyEngine, MaskTotals, Region, Scene, frame_totals};
+use crate::capture::masks::MOUTH_BIT;
 use crate::capture::{Arch, ArchPoses, FrameMasks, LOWER_BIT, LabelMask, Mesh, PerArch, UPPER_BIT};
 use crate::error::Result;
 use crate::geometry::{Camera, Pose};
@@ -23,7 +24,7 @@ struct PreparedMask {
     mask: LabelMask,
     /// Per scored arch (upper, lower): see `mask_totals`.
     totals: PerArch<MaskTotals>,
-    /// Where either arch's label is (for [`Region::Relevant`]).
+    /// Where either arch's or the mouth's label is (for [`Region::Relevant`]).
     tiles: LabelledTiles,
 }
 
@@ -253,7 +254,8 @@ impl EnergyEngine for CpuEnergy {
             .map(|m| {
                 m.as_ref().map(|mask| PreparedMask {
                     totals: frame_totals(mask),
-                    tiles: LabelledTiles::new(mask, UPPER_BIT | LOWER_BIT),
+                    // Body faces matter over the mouth interior too (over-mouth).
+                    tiles: LabelledTiles::new(mask, UPPER_BIT | LOWER_BIT | MOUTH_BIT),
                     mask: mask.clone(),
                 })
             })
@@ -285,7 +287,7 @@ impl EnergyEngine for CpuEnergy {
 
 #[cfg(test)]
 mod tests {
-    use super::super::{MASK_NONE, MASK_OTHER, MASK_OWN};
+    use super::super::{MASK_MOUTH, MASK_NONE, MASK_OTHER, MASK_OWN, Weights};
     use super::*;
     use crate::capture::{MaskMode, Mesh};
     use crate::geometry::Pose;
@@ -418,8 +420,100 @@ mod tests {
         );
         assert_eq!(c.uncovered(), 100);
         assert_eq!(c.paper_bins().iter().sum::<u64>(), 8000);
+        assert_eq!(c.over_mouth(), 0);
         let en = Energy { cameras: vec![c] };
-        assert_eq!(en.objective(0.4, 1.0), 100.0 + 0.4 * 50.0 + 100.0);
+        let w = Weights {
+            lambda: 0.4,
+            cross: 1.0,
+            mouth: 0.0,
+        };
+        assert_eq!(en.objective(&w), 100.0 + 0.4 * 50.0 + 100.0);
+    }
+
+    /// The engine with the upper label on `teeth` and the mouth interior's on `mouth`
+    /// (x0, y0, x1, y1), in `mode`.
+    fn mouth_engine(
+        teeth: (usize, usize, usize, usize),
+        mouth: (usize, usize, usize, usize),
+        mode: MaskMode,
+    ) -> CpuEnergy {
+        let mut e = engine(
+            (
+                teeth.0 as u32,
+                teeth.1 as u32,
+                teeth.2 as u32,
+                teeth.3 as u32,
+            ),
+            mode,
+        );
+        let mut mask = match &e.frame[0] {
+            Some(p) => p.mask.clone(),
+            None => unreachable!(),
+        };
+        for y in mouth.1..mouth.3 {
+            for x in mouth.0..mouth.2 {
+                mask.data[y * 100 + x] = crate::capture::masks::MOUTH_BIT;
+            }
+        }
+        e.set_frame(&FrameMasks {
+            frame: 0,
+            masks: vec![Some(mask)],
+        })
+        .unwrap();
+        e
+    }
+
+    #[test]
+    fn drawing_over_the_mouth_interior_counts_as_over_mouth() {
+        // Teeth on columns 40..60 (the square's place), mouth interior on 60..80. The square
+        // moved 5 px right draws 5 columns over the mouth: 5 x 20 = 100 pixels, 50 of them BOI.
+        let e = mouth_engine((40, 30, 60, 50), (60, 30, 80, 50), PER_ARCH);
+        let en = &e.evaluate(Arch::Upper, &[at_depth(5.0)]).unwrap()[0];
+        let c = en.cameras[0];
+        assert_eq!(c.over_mouth(), 100);
+        assert_eq!(c.bin(MASK_MOUTH, 2), 50);
+        assert_eq!(c.bin(MASK_MOUTH, 0), 400 - 100);
+        assert_eq!(
+            c.boi_outside(),
+            50,
+            "BOI over the mouth is outside the mask"
+        );
+        assert_eq!(c.uncovered(), 100);
+        assert_eq!(c.cross(), 0);
+        assert_eq!(c.bins.iter().sum::<u64>(), 8000);
+        assert_eq!(c.paper_bins().iter().sum::<u64>(), 8000);
+        // The paper's E is the same as with the mouth unlabelled; the objective adds μ·100.
+        let plain = engine((40, 30, 60, 50), PER_ARCH);
+        let p = &plain.evaluate(Arch::Upper, &[at_depth(5.0)]).unwrap()[0];
+        assert_eq!(p.total(0.4), en.total(0.4));
+        assert_eq!(p.over_mouth(), 0);
+        let w = Weights {
+            lambda: 0.4,
+            cross: 1.0,
+            mouth: 2.0,
+        };
+        assert_eq!(en.objective(&w), en.total(0.4) + 200.0);
+        // Moved left, it draws over the unlabelled background only.
+        let left = &e.evaluate(Arch::Upper, &[at_depth(-5.0)]).unwrap()[0];
+        assert_eq!(left.over_mouth(), 0);
+    }
+
+    #[test]
+    fn with_combined_masks_either_arch_over_the_mouth_counts() {
+        // The other arch (no BOI) sits over the mouth interior, columns 60..80 at z = 101 mm
+        // (about 19.8 px wide): scoring the upper arch counts its pixels over the mouth too.
+        let mut e = mouth_engine((40, 30, 60, 50), (60, 30, 80, 50), MaskMode::Combined);
+        e.scene.lower = Mesh {
+            boi: vec![false; 4],
+            ..square_mesh()
+        };
+        let poses = ArchPoses {
+            upper: Pose::from_translation(Vector3::new(0.0, 0.0, 100.0)),
+            lower: Pose::from_translation(Vector3::new(20.0, 0.0, 101.0)),
+        };
+        let c = e.evaluate(Arch::Upper, &[poses]).unwrap()[0].cameras[0];
+        assert!((360..=400).contains(&c.over_mouth()), "{c:?}");
+        assert_eq!(c.bin(MASK_MOUTH, 2), 0);
     }
 
     #[test]

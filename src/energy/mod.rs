@@ -1,6 +1,7 @@
 //! The paper's energy E = E_SP + λ·E_BND (Eq. 7-9), per arch and candidate pose, summed over
-//! cameras. Every backend implements [`EnergyEngine`]: a batch of candidate poses in, one
-//! [`Energy`] (nine counts per camera: mask none/own/other x class) out for each.
+//! cameras, and the terms of our own beside it (cross-label, over the mouth). Every backend
+//! implements [`EnergyEngine`]: a batch of candidate poses in, one [`Energy`] (twelve counts
+//! per camera: mask none/own/other/mouth x class) out for each.
 
 pub mod backend;
 pub mod backfaces;
@@ -15,6 +16,7 @@ pub mod raster;
 pub mod relevance;
 pub mod target;
 
+use crate::capture::masks::MOUTH_BIT;
 use crate::capture::{Arch, ArchPoses, Capture, FrameMasks, MaskMode, Mesh, PerArch};
 use crate::error::Result;
 use crate::geometry::Camera;
@@ -27,7 +29,8 @@ pub const DEFAULT_LAMBDA: f64 = 0.4;
 
 /// Which part of each mask an evaluation renders and counts. `Footprint` and `FullFrame` give
 /// the same counts: outside the model's footprint every pixel is class none, so those bins
-/// follow from the mask's totals. `Relevant` gives the same energy, cross and area error.
+/// follow from the mask's totals. `Relevant` gives the same energy, cross, over-mouth and area
+/// error.
 #[derive(Debug, Clone, Copy, Default, PartialEq, Eq)]
 pub enum Region {
     /// Only the pixels the arch (and, in combined mode, the other arch) can cover.
@@ -39,8 +42,8 @@ pub enum Region {
     /// GPU engine draws the footprint): body faces off the labelled pixels and away from the
     /// boundary of interest are skipped (`relevance`, by cluster then by face: `clusters`),
     /// and so are the faces of closed meshes turned away from the camera (`backfaces`). The
-    /// bins of body pixels off the mask come out low; uncovered, BOI outside, cross and area
-    /// error are those of `Footprint`.
+    /// bins of body pixels off the labels come out low; uncovered, BOI outside, cross,
+    /// over-mouth and area error are those of `Footprint`.
     Relevant,
 }
 
@@ -61,24 +64,43 @@ pub const MASK_NONE: usize = 0;
 pub const MASK_OWN: usize = 1;
 /// The pixel shows the other arch (per-arch masks only).
 pub const MASK_OTHER: usize = 2;
+/// The pixel shows the visible mouth interior: no tooth there (`masks.mouth`).
+pub const MASK_MOUTH: usize = 3;
+/// Bins per camera: mask state (`MASK_*`) x class (none, body, BOI).
+pub const BINS: usize = 12;
 
-/// A mask's pixel totals for a scored arch: its own pixels and the other arch's (the rest
-/// show neither).
+/// A mask's pixel totals for a scored arch: its own pixels, the other arch's and the mouth's
+/// (the rest show none of them).
 #[derive(Debug, Clone, Copy, Default, PartialEq, Eq)]
 pub struct MaskTotals {
     pub own: u64,
     pub other: u64,
+    pub mouth: u64,
+}
+
+/// The mask state of a label for the scored arch: own, else other, else mouth, else none
+/// (combined masks carry both arches' bits: own). The GPU's is in shaders/histogram.wgsl.
+pub fn mask_state(label: u8, arch: Arch) -> usize {
+    if label & arch.mask_bit() != 0 {
+        MASK_OWN
+    } else if label & arch.other().mask_bit() != 0 {
+        MASK_OTHER
+    } else if label & MOUTH_BIT != 0 {
+        MASK_MOUTH
+    } else {
+        MASK_NONE
+    }
 }
 
 /// The totals of `mask` for the scored `arch`.
 pub fn mask_totals(mask: &crate::capture::LabelMask, arch: Arch) -> MaskTotals {
-    let (own, other) = (arch.mask_bit(), arch.other().mask_bit());
     let mut t = MaskTotals::default();
     for &m in &mask.data {
-        if m & own != 0 {
-            t.own += 1;
-        } else if m & other != 0 {
-            t.other += 1;
+        match mask_state(m, arch) {
+            MASK_OWN => t.own += 1,
+            MASK_OTHER => t.other += 1,
+            MASK_MOUTH => t.mouth += 1,
+            _ => {}
         }
     }
     t
@@ -89,23 +111,45 @@ pub fn frame_totals(mask: &crate::capture::LabelMask) -> PerArch<MaskTotals> {
     PerArch::from_fn(|arch| mask_totals(mask, arch))
 }
 
-/// The nine bins of a camera from the bins counted inside a rendered region, adding the
-/// pixels outside it (all class none) from the mask's totals.
-pub fn counts_with_outside(inside: [u64; 9], cam: &Camera, totals: MaskTotals) -> Counts {
+/// A camera's bins from the bins counted inside a rendered region, adding the pixels
+/// outside it (all class none) from the mask's totals.
+pub fn counts_with_outside(inside: [u64; BINS], cam: &Camera, totals: MaskTotals) -> Counts {
     let row = |m: usize| inside[m * 3..m * 3 + 3].iter().sum::<u64>();
     let all = cam.width as u64 * cam.height as u64;
     let mut bins = inside;
     bins[MASK_OWN * 3] += totals.own - row(MASK_OWN);
     bins[MASK_OTHER * 3] += totals.other - row(MASK_OTHER);
-    bins[MASK_NONE * 3] += (all - totals.own - totals.other) - row(MASK_NONE);
+    bins[MASK_MOUTH * 3] += totals.mouth - row(MASK_MOUTH);
+    bins[MASK_NONE * 3] += (all - totals.own - totals.other - totals.mouth) - row(MASK_NONE);
     Counts { bins }
 }
 
-/// One camera's counts: mask state (none, own, other: `MASK_*`) x class (none, body, BOI), at
-/// `mask * 3 + class`. The paper's six bins fold "other" into "none" ([`Counts::paper_bins`]).
+/// The weights of the objective the search minimises: the paper's E (λ) and the terms of
+/// our own (cross-label, over the mouth).
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct Weights {
+    pub lambda: f64,
+    pub cross: f64,
+    pub mouth: f64,
+}
+
+impl Weights {
+    /// The paper's objective: E alone.
+    pub fn paper(lambda: f64) -> Weights {
+        Weights {
+            lambda,
+            cross: 0.0,
+            mouth: 0.0,
+        }
+    }
+}
+
+/// One camera's counts: mask state (none, own, other, mouth: `MASK_*`) x class (none, body,
+/// BOI), at `mask * 3 + class`. The paper's six bins fold "other" and "mouth" into "none"
+/// ([`Counts::paper_bins`]).
 #[derive(Debug, Clone, Copy, Default, PartialEq, Eq)]
 pub struct Counts {
-    pub bins: [u64; 9],
+    pub bins: [u64; BINS],
 }
 
 impl Counts {
@@ -118,7 +162,13 @@ impl Counts {
     }
     /// The paper's #Pixel_DGreen: visible BOI pixels outside the arch's mask.
     pub fn boi_outside(&self) -> u64 {
-        self.bins[MASK_NONE * 3 + 2] + self.bins[MASK_OTHER * 3 + 2]
+        self.bins[MASK_NONE * 3 + 2] + self.bins[MASK_OTHER * 3 + 2] + self.bins[MASK_MOUTH * 3 + 2]
+    }
+    /// Pixels labelled visible mouth interior where the model is drawn (the scored arch's;
+    /// with combined masks either arch's): a tooth drawn where the camera sees none. The
+    /// paper's energy is blind to it, so a pose may slide into the region the lips hide.
+    pub fn over_mouth(&self) -> u64 {
+        self.bins[MASK_MOUTH * 3 + 1] + self.bins[MASK_MOUTH * 3 + 2]
     }
     /// Pixels the segmentation gives to the other arch where this arch's model is visible in
     /// front of it: a contradiction that a single teeth mask (the paper's) cannot show. Zero
@@ -129,10 +179,18 @@ impl Counts {
     pub fn mask_pixels(&self) -> u64 {
         self.bins[MASK_OWN * 3..MASK_OWN * 3 + 3].iter().sum()
     }
-    /// The paper's six bins, mask (off, on) x class: the other arch's pixels count as off.
+    /// The paper's six bins, mask (off, on) x class: the other arch's and the mouth's pixels
+    /// count as off.
     pub fn paper_bins(&self) -> [u64; 6] {
         let b = &self.bins;
-        [b[0] + b[6], b[1] + b[7], b[2] + b[8], b[3], b[4], b[5]]
+        [
+            b[0] + b[6] + b[9],
+            b[1] + b[7] + b[10],
+            b[2] + b[8] + b[11],
+            b[3],
+            b[4],
+            b[5],
+        ]
     }
     pub fn total(&self, lambda: f64) -> f64 {
         self.uncovered() as f64 + lambda * self.boi_outside() as f64
@@ -158,13 +216,17 @@ impl Energy {
     pub fn cross(&self) -> u64 {
         self.cameras.iter().map(Counts::cross).sum()
     }
+    pub fn over_mouth(&self) -> u64 {
+        self.cameras.iter().map(Counts::over_mouth).sum()
+    }
     /// The paper's E = uncovered + λ·boi_outside.
     pub fn total(&self, lambda: f64) -> f64 {
         self.uncovered() as f64 + lambda * self.boi_outside() as f64
     }
-    /// What the search minimises: the paper's E plus `cross_weight`·cross (per-arch masks).
-    pub fn objective(&self, lambda: f64, cross_weight: f64) -> f64 {
-        self.total(lambda) + cross_weight * self.cross() as f64
+    /// What the search minimises: the paper's E plus the cross-label term (per-arch masks)
+    /// and the over-mouth term (masks that label the mouth), each at its weight.
+    pub fn objective(&self, w: &Weights) -> f64 {
+        self.total(w.lambda) + w.cross * self.cross() as f64 + w.mouth * self.over_mouth() as f64
     }
     /// The paper's accuracy proxy: uncovered / mask pixels (0 without mask pixels).
     pub fn area_error(&self) -> f64 {

@@ -1,12 +1,12 @@
 //! Which of the scored arch's body faces can change what the energy reads ([`Region::Relevant`]).
 //!
 //! E reads, per pixel, whether an arch-labelled pixel is covered (uncovered), whether a pixel
-//! off the arch's label shows the boundary of interest (BOI outside) and whether the other
-//! arch's pixels show this arch (cross). A body face drawn over pixels that carry no teeth
-//! label changes none of these, unless the BOI could be drawn there too (a body face in
-//! front hides it). So a body face, or a whole cluster of them, can be skipped when its
+//! off the arch's label shows the boundary of interest (BOI outside), whether the other
+//! arch's pixels show this arch (cross) and whether mouth-interior pixels show a model
+//! (over-mouth). A body face drawn over pixels that carry no label changes none of these,
+//! unless the BOI could be drawn there too (a body face in front hides it). So a body face, or a whole cluster of them, can be skipped when its
 //! pixel bounds hold no labelled pixel and miss the rectangle the BOI can cover: the energy,
-//! cross and area error stay exact; only the count of body pixels off the mask drops.
+//! cross, over-mouth and area error stay exact; only the count of body pixels off the mask drops.
 //!
 //! [`Region::Relevant`]: super::Region::Relevant
 

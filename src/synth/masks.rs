@@ -190,16 +190,20 @@ fn filter(src: &[bool], w: usize, h: usize, r: usize, dilate: bool) -> Vec<bool>
     pass(&pass(src, true), false)
 }
 
-/// Small round holes where a specular highlight defeated the segmentation.
+/// Small round holes where a specular highlight on a tooth (a pixel of one of `teeth`'s
+/// values) defeated the segmentation: unlabelled, neither tooth nor mouth.
 pub fn specular_holes(
     labels: &mut [u8],
     width: usize,
     count: usize,
     max_radius: i64,
+    teeth: &[u8],
     rng: &mut impl rand::Rng,
 ) {
     let height = labels.len() / width;
-    let teeth: Vec<usize> = (0..labels.len()).filter(|&i| labels[i] != 0).collect();
+    let teeth: Vec<usize> = (0..labels.len())
+        .filter(|&i| teeth.contains(&labels[i]))
+        .collect();
     if teeth.is_empty() {
         return;
     }

@@ -37,6 +37,9 @@ pub const FRAMES_PER_SECOND: f64 = 24.0;
 pub const UPPER_LABEL: u8 = 85;
 pub const LOWER_LABEL: u8 = 170;
 const COMBINED_TEETH: u8 = 255;
+/// The mask value of the visible mouth interior (`masks.mouth`): dark, below 128 so that
+/// combined masks can carry it too.
+pub const MOUTH_LABEL: u8 = 40;
 /// A moderate barrel lens (OpenCV's k1, k2, p1, p2, k3), for tests and benchmarks of captures
 /// with distortion. At the synthetic rig's full resolution it moves a point the pinhole camera
 /// puts in an image corner in by about 200 pixels, and one 200 pixels from the centre, where
@@ -97,6 +100,13 @@ pub struct SynthOptions {
     /// files': written to the capture's camera files, and the masks are drawn through it.
     /// `None` keeps the cameras' own (calib/ has none).
     pub distortion: Option<[f64; 5]>,
+    /// Label the visible mouth interior (the lip opening less the teeth) in the masks of
+    /// the presets with lips (`masks.mouth`); false writes teeth masks alone.
+    pub mouth: bool,
+    /// Segmentation errors that persist from frame to frame, as a tracked roto mask's do:
+    /// each camera's wandering boundaries and specular holes are drawn once for the capture
+    /// rather than afresh every frame.
+    pub persistent_noise: bool,
 }
 
 impl Default for SynthOptions {
@@ -113,7 +123,16 @@ impl Default for SynthOptions {
             frames_per_segment: exercise::FRAMES_PER_SEGMENT,
             rig: None,
             distortion: None,
+            mouth: true,
+            persistent_noise: false,
         }
+    }
+}
+
+impl SynthOptions {
+    /// Whether the masks label the visible mouth interior: asked for, and a preset with lips.
+    pub fn writes_mouth(&self) -> bool {
+        self.mouth && self.preset != Preset::Clean && !self.no_masks
     }
 }
 
@@ -140,6 +159,8 @@ pub struct CameraStats {
     pub frames_with_mask: u32,
     /// Mean mask pixels per frame, upper and lower.
     pub mean_mask_pixels: [f64; 2],
+    /// Mean pixels per frame labelled visible mouth interior.
+    pub mean_mouth_pixels: f64,
     /// Share of each arch's projection (drawn alone) that is in its mask, over all frames.
     pub visible_share: [f64; 2],
 }
@@ -369,6 +390,7 @@ impl Session {
 struct RenderedMask {
     png: Option<Vec<u8>>,
     mask_pixels: [u64; 2],
+    mouth_pixels: u64,
     alone_pixels: [u64; 2],
 }
 
@@ -401,20 +423,27 @@ fn render_mask(
         Preset::Realistic => (1.5, 3, 2),
         Preset::Hard => (2.5, 8, 3),
     };
+    let teeth = [UPPER_LABEL, LOWER_LABEL];
     if opts.preset != Preset::Clean {
-        masks::fill_between_teeth(&mut labels, w, h, 2, &[UPPER_LABEL, LOWER_LABEL]);
+        masks::fill_between_teeth(&mut labels, w, h, 2, &teeth);
+        if opts.writes_mouth() {
+            // Inside the lip opening, what is not a tooth is the mouth's interior.
+            labels
+                .iter_mut()
+                .filter(|l| **l == 0)
+                .for_each(|l| *l = MOUTH_LABEL);
+        }
         let opening = masks::lip_opening(cam, poses, &s.lips, show);
         masks::apply_lips(&mut labels, w, &opening);
-        masks::specular_holes(&mut labels, w, holes, hole_radius, rng);
+        masks::specular_holes(&mut labels, w, holes, hole_radius, &teeth, rng);
         labels = masks::wander_boundaries(&labels, w, jitter, rng);
     }
-    let mask_pixels = [
-        labels.iter().filter(|&&l| l == UPPER_LABEL).count() as u64,
-        labels.iter().filter(|&&l| l == LOWER_LABEL).count() as u64,
-    ];
+    let count = |value: u8| labels.iter().filter(|&&l| l == value).count() as u64;
+    let mask_pixels = [count(UPPER_LABEL), count(LOWER_LABEL)];
+    let mouth_pixels = count(MOUTH_LABEL);
     if opts.masks == MaskKind::Combined {
         for l in &mut labels {
-            if *l != 0 {
+            if teeth.contains(l) {
                 *l = COMBINED_TEETH;
             }
         }
@@ -425,6 +454,7 @@ fn render_mask(
     RenderedMask {
         png,
         mask_pixels,
+        mouth_pixels,
         alone_pixels,
     }
 }

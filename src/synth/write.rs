@@ -17,8 +17,8 @@ use crate::capture::{ArchPoses, write_atomic, write_json_atomic};
 use crate::error::Result;
 
 use super::{
-    CameraStats, LOWER_LABEL, MaskKind, Session, SynthOptions, SynthReport, UPPER_LABEL,
-    render_mask,
+    CameraStats, LOWER_LABEL, MOUTH_LABEL, MaskKind, Session, SynthOptions, SynthReport,
+    UPPER_LABEL, render_mask,
 };
 
 pub(super) fn write_capture(
@@ -29,6 +29,7 @@ pub(super) fn write_capture(
     started: Instant,
 ) -> Result<SynthReport> {
     let names: Vec<String> = s.cameras.iter().map(|(c, _)| c.name.clone()).collect();
+    let mouth = opts.writes_mouth().then_some(MOUTH_LABEL as i64);
     let capture = CaptureJson {
         format: crate::capture::json::CAPTURE_FORMAT.into(),
         cameras: names.clone(),
@@ -51,14 +52,14 @@ pub(super) fn write_capture(
                 mode: "per-arch".into(),
                 upper: Some(UPPER_LABEL as i64),
                 lower: Some(LOWER_LABEL as i64),
-                mouth: None,
+                mouth,
             },
             MaskKind::Combined => MasksJson {
                 dir: "masks".into(),
                 mode: "combined".into(),
                 upper: None,
                 lower: None,
-                mouth: None,
+                mouth,
             },
         },
     };
@@ -95,9 +96,14 @@ pub(super) fn write_capture(
                 if opts.no_masks {
                     break;
                 }
+                // Persistent errors: the same draws every frame (per camera).
+                let drawn_at = if opts.persistent_noise {
+                    0
+                } else {
+                    index as u64
+                };
                 let mut rng = ChaCha8Rng::seed_from_u64(
-                    opts.seed
-                        ^ ((index as u64) << 8 | c as u64).wrapping_mul(0x9E37_79B9_7F4A_7C15),
+                    opts.seed ^ (drawn_at << 8 | c as u64).wrapping_mul(0x9E37_79B9_7F4A_7C15),
                 );
                 let m = render_mask(s, cam, &poses, show, opts, &mut rng);
                 if let Some(png) = &m.png {
@@ -167,10 +173,12 @@ pub(super) fn write_capture(
     for (c, cam) in s.mask_cameras.iter().enumerate() {
         let mut with_mask = 0;
         let mut mask = [0u64; 2];
+        let mut mouth = 0u64;
         let mut alone = [0u64; 2];
         for (_, _, _, stats) in &frames {
             let Some(m) = stats.get(c) else { continue };
             with_mask += m.png.is_some() as u32;
+            mouth += m.mouth_pixels;
             for k in 0..2 {
                 mask[k] += m.mask_pixels[k];
                 alone[k] += m.alone_pixels[k];
@@ -181,6 +189,7 @@ pub(super) fn write_capture(
             mask_size: [cam.width, cam.height],
             frames_with_mask: with_mask,
             mean_mask_pixels: mask.map(|m| m as f64 / opts.frames as f64),
+            mean_mouth_pixels: mouth as f64 / opts.frames as f64,
             visible_share: [0, 1].map(|k| {
                 if alone[k] == 0 {
                     0.0

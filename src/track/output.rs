@@ -35,7 +35,7 @@ struct JournalHead {
 
 /// The record of a tracked frame, as the spec writes it.
 pub fn record(r: &FrameResult) -> FrameRecordJson {
-    let arch_energy = |e: &crate::energy::Energy, lambda: f64| json!({"total": e.total(lambda), "uncovered": e.uncovered(), "boi_outside": e.boi_outside(), "cross": e.cross()});
+    let arch_energy = |e: &crate::energy::Energy, lambda: f64| json!({"total": e.total(lambda), "uncovered": e.uncovered(), "boi_outside": e.boi_outside(), "cross": e.cross(), "over_mouth": e.over_mouth()});
     let lambda = crate::energy::DEFAULT_LAMBDA;
     FrameRecordJson {
         frame: r.frame,

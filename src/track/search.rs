@@ -12,7 +12,7 @@ use rand::{RngExt, SeedableRng};
 
 use super::penalties::Penalties;
 use crate::capture::{Arch, ArchPoses};
-use crate::energy::{Energy, EnergyEngine};
+use crate::energy::{Energy, EnergyEngine, Weights};
 use crate::error::Result;
 use crate::geometry::Pose;
 use crate::settings::Rules;
@@ -50,6 +50,12 @@ pub struct SearchSettings {
     /// move in front of the other to cover its own mask's noisy edge at no cost. 0 gives the
     /// paper's E exactly; combined masks have no such pixels.
     pub cross_weight: f64,
+    /// Weight μ of the over-mouth term added to E when the masks label the visible mouth
+    /// interior (`masks.mouth`): pixels of it where a model is drawn. The paper's E never
+    /// charges a tooth drawn where the camera sees none, so a pose can slide or tilt into
+    /// the region the lips hide for free. 0 gives the paper's E; masks without the label
+    /// have no such pixels.
+    pub mouth_weight: f64,
 }
 
 impl Default for SearchSettings {
@@ -69,6 +75,7 @@ impl Default for SearchSettings {
             scales: vec![1.0, 0.25],
             lambda: crate::energy::DEFAULT_LAMBDA,
             cross_weight: 1.0,
+            mouth_weight: 1.0,
         }
     }
 }
@@ -95,7 +102,17 @@ impl SearchSettings {
         }
         rules.number("lambda", self.lambda, 0.0, 1000.0)?;
         rules.number("cross_weight", self.cross_weight, 0.0, 1000.0)?;
+        rules.number("mouth_weight", self.mouth_weight, 0.0, 1000.0)?;
         Ok(())
+    }
+
+    /// The weights of the objective the search minimises.
+    pub fn weights(&self) -> Weights {
+        Weights {
+            lambda: self.lambda,
+            cross: self.cross_weight,
+            mouth: self.mouth_weight,
+        }
     }
 }
 
@@ -104,8 +121,8 @@ impl SearchSettings {
 pub struct Found {
     pub pose: Pose,
     pub energy: Energy,
-    /// What the search minimised, at `pose`: the paper's E plus the cross-label term and the
-    /// penalties (contact, the jaw's manifold); [`Energy::total`] is the paper's E alone.
+    /// What the search minimised, at `pose`: the paper's E plus the cross-label and
+    /// over-mouth terms and the penalties (contact, the jaw's manifold); [`Energy::total`] is the paper's E alone.
     pub objective: f64,
     pub evaluations: usize,
 }
@@ -118,8 +135,7 @@ struct Objective<'a> {
     start: Pose,
     /// The arch's centre in world: rotations turn about it.
     centre: Vector3<f64>,
-    lambda: f64,
-    cross_weight: f64,
+    weights: Weights,
     penalties: &'a Penalties,
     evaluations: usize,
 }
@@ -144,11 +160,10 @@ impl Objective<'_> {
         let candidates = self.candidates(ds);
         self.evaluations += ds.len();
         let energies = self.engine.evaluate(self.arch, &candidates)?;
-        let (lambda, cross) = (self.lambda, self.cross_weight);
         Ok(energies
             .into_iter()
             .zip(&candidates)
-            .map(|(e, c)| (e.objective(lambda, cross) + self.penalties.of(c), e))
+            .map(|(e, c)| (e.objective(&self.weights) + self.penalties.of(c), e))
             .collect())
     }
 
@@ -197,8 +212,7 @@ pub fn search(
         context: *context,
         start,
         centre: start.transform_point(centre),
-        lambda: s.lambda,
-        cross_weight: s.cross_weight,
+        weights: s.weights(),
         penalties,
         evaluations: 0,
     };

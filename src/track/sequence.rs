@@ -301,7 +301,8 @@ fn track_frame(
         });
     }
     engine.set_frame(masks)?;
-    let objective = |e: &Energy| e.objective(settings.search.lambda, settings.search.cross_weight);
+    let weights = settings.search.weights();
+    let objective = |e: &Energy| e.objective(&weights);
     let mut evaluations = 0;
     // Start, per arch, from whichever fits this frame best: the last good pose, its
     // constant-velocity extrapolation, or the latest low-confidence estimate since.

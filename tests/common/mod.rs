@@ -110,8 +110,8 @@ pub fn edit_json(path: &Path, f: impl FnOnce(&mut serde_json::Value)) {
 }
 
 /// The `Energy` region against the `Footprint` region on every frame of a capture, for
-/// candidates up to `offset` (degrees and mm) from the truth: the same energy, cross and
-/// area error for every candidate, while body pixels off the mask are skipped (the energy
+/// candidates up to `offset` (degrees and mm) from the truth: the same energy, cross,
+/// over-mouth and area error for every candidate, while body pixels off the mask are skipped (the energy
 /// region counts fewer of them in most camera views). Returns how many were compared.
 pub fn energy_region_matches_footprint(capture: &jawtrack::capture::Capture, offset: f64) -> usize {
     use jawtrack::capture::Arch;
@@ -142,7 +142,13 @@ pub fn energy_region_matches_footprint(capture: &jawtrack::capture::Capture, off
             for (k, (a, b)) in a.iter().zip(&b).enumerate() {
                 for (x, y) in a.cameras.iter().zip(&b.cameras) {
                     let read = |c: &jawtrack::energy::Counts| {
-                        (c.uncovered(), c.boi_outside(), c.cross(), c.mask_pixels())
+                        (
+                            c.uncovered(),
+                            c.boi_outside(),
+                            c.cross(),
+                            c.over_mouth(),
+                            c.mask_pixels(),
+                        )
                     };
                     assert_eq!(read(x), read(y), "frame {f} {arch:?} candidate {k}");
                     skipped += (y.bin(MASK_NONE, 1) < x.bin(MASK_NONE, 1)) as usize;

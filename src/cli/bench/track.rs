@@ -4,11 +4,11 @@ use std::path::PathBuf;
 
 use anyhow::Context;
 use jawtrack::capture::{Arch, ArchPoses, Capture};
-use jawtrack::energy::{EnergyEngine, Region, Scene};
+use jawtrack::energy::{EnergyEngine, Region, Scene, Weights};
 use jawtrack::synth::{SynthOptions, generate};
 use jawtrack::track::SessionOptions;
 
-use crate::cli::args::{JointArg, MaskKindArg, PresetArg, name_of};
+use crate::cli::args::{EnergyArg, JointArg, MaskKindArg, PresetArg, name_of};
 
 #[derive(clap::Args)]
 pub struct TrackArgs {
@@ -44,6 +44,17 @@ pub struct TrackArgs {
     /// file, or the JSON itself when it starts with `{`.
     #[arg(long)]
     settings: Option<PathBuf>,
+    /// The objective: the paper's E with the terms of our own, or the paper's E alone (for
+    /// tracking and the floor alike).
+    #[arg(long, value_enum, default_value_t = EnergyArg::Full)]
+    energy: EnergyArg,
+    /// Track each capture with its masks' mouth label, without it (the label ignored: the
+    /// same masks as teeth masks), or both, one row each.
+    #[arg(long, value_delimiter = ',', default_value = "with,without")]
+    mouth: Vec<MouthLabel>,
+    /// Segmentation errors that persist from frame to frame (see `synth --persistent-noise`).
+    #[arg(long)]
+    persistent_noise: bool,
     /// How the meshes are simplified and the masks read at load (for tracking, the floor and
     /// the score alike).
     #[command(flatten)]
@@ -52,10 +63,19 @@ pub struct TrackArgs {
     engine: crate::cli::args::EngineArgs,
 }
 
+/// Whether a capture is tracked with its masks' mouth label.
+#[derive(clap::ValueEnum, Clone, Copy, Debug, PartialEq, Eq)]
+enum MouthLabel {
+    With,
+    Without,
+}
+
 #[derive(serde::Serialize)]
 struct TrackRow {
     preset: String,
     masks: String,
+    /// Whether the masks' mouth label was read (the capture has one).
+    mouth_label: bool,
     frames: usize,
     seconds_per_frame: f64,
     evaluations_per_frame: f64,
@@ -75,23 +95,27 @@ struct TrackRow {
     area_error_percent_median: [f64; 2],
 }
 
-/// The search's objective (E plus the cross-label term, default weights) of both arches.
-fn objective_sum(engine: &dyn EnergyEngine, poses: &ArchPoses) -> anyhow::Result<f64> {
-    let s = jawtrack::track::SearchSettings::default();
+/// The search's objective (E plus the terms of our own, at `weights`) of both arches.
+fn objective_sum(
+    engine: &dyn EnergyEngine,
+    poses: &ArchPoses,
+    weights: &Weights,
+) -> anyhow::Result<f64> {
     let mut sum = 0.0;
     for arch in Arch::BOTH {
-        sum += engine.evaluate(arch, std::slice::from_ref(poses))?[0]
-            .objective(s.lambda, s.cross_weight);
+        sum += engine.evaluate(arch, std::slice::from_ref(poses))?[0].objective(weights);
     }
     Ok(sum)
 }
 
-/// The floor: E minimised by a long, fine search from the true poses (upper, then lower).
+/// The floor: the objective (at the tracking's weights, without penalties) minimised by a
+/// long, fine search from the true poses (upper, then lower).
 fn floor_poses(
     capture: &Capture,
     engine: &dyn EnergyEngine,
     truth: &ArchPoses,
     frame: u32,
+    weights: &Weights,
 ) -> anyhow::Result<ArchPoses> {
     use jawtrack::track::SearchSettings;
     let fine = SearchSettings {
@@ -100,6 +124,9 @@ fn floor_poses(
         sample_rounds: 4,
         samples: 64,
         scales: vec![1.0, 0.25, 0.06],
+        lambda: weights.lambda,
+        cross_weight: weights.cross,
+        mouth_weight: weights.mouth,
         ..SearchSettings::default()
     };
     let mut poses = *truth;
@@ -123,9 +150,15 @@ fn floor_poses(
 pub fn track(a: TrackArgs) -> anyhow::Result<()> {
     use jawtrack::track::score::Stats;
     let tmp = tempfile::tempdir()?;
-    let settings = crate::cli::args::track_settings(a.settings.as_deref())?;
+    let settings = crate::cli::args::track_settings(a.settings.as_deref(), a.energy)?;
+    let weights = settings.search.weights();
     let mut rows = Vec::new();
-    for preset in &a.presets {
+    for (preset, label) in a
+        .presets
+        .iter()
+        .flat_map(|p| a.mouth.iter().map(move |m| (p, *m)))
+    {
+        let mut labelled = false;
         let mut jaw = Vec::new();
         let mut upper = Vec::new();
         let mut lower = Vec::new();
@@ -146,10 +179,18 @@ pub fn track(a: TrackArgs) -> anyhow::Result<()> {
                 meshes: a.meshes.clone(),
                 rig: a.rig.rig.clone(),
                 distortion: a.rig.distortion()?,
+                persistent_noise: a.persistent_noise,
                 ..SynthOptions::default()
             };
-            generate(&dir, &opts, &|| {}).context("synthesising")?;
-            let capture = Capture::open_with(&dir, a.load.open_options())?;
+            // Each capture is written once and tracked with and without its label.
+            if !dir.exists() {
+                generate(&dir, &opts, &|| {}).context("synthesising")?;
+            }
+            let mut capture = Capture::open_with(&dir, a.load.open_options())?;
+            if label == MouthLabel::Without {
+                capture.mouth = None;
+            }
+            labelled |= capture.mouth.is_some();
             let out = dir.join("tracks.json");
             let options = SessionOptions {
                 backend: a.engine.backend.into(),
@@ -183,11 +224,11 @@ pub fn track(a: TrackArgs) -> anyhow::Result<()> {
                     continue;
                 }
                 engine.set_frame(&masks)?;
-                let f = floor_poses(&capture, engine.as_ref(), &truth, *frame)?;
+                let f = floor_poses(&capture, engine.as_ref(), &truth, *frame, &weights)?;
                 let t = tracked[frame];
                 let (et, ef) = (
-                    objective_sum(engine.as_ref(), &t)?,
-                    objective_sum(engine.as_ref(), &f)?,
+                    objective_sum(engine.as_ref(), &t, &weights)?,
+                    objective_sum(engine.as_ref(), &f, &weights)?,
                 );
                 if et > ef + 0.5 {
                     shortfall += 1;
@@ -200,8 +241,13 @@ pub fn track(a: TrackArgs) -> anyhow::Result<()> {
                 floor.push(floor_jaw);
                 ratio.push(err[2] / floor_jaw.max(0.01));
                 eprintln!(
-                    "{} seed {seed} frame {frame}: jaw {:.3} mm, floor {:.3} mm; E tracked {et:.0}, at the floor {ef:.0}",
+                    "{} {} seed {seed} frame {frame}: jaw {:.3} mm, floor {:.3} mm; E tracked {et:.0}, at the floor {ef:.0}",
                     name_of(preset),
+                    if capture.mouth.is_some() {
+                        "labelled"
+                    } else {
+                        "unlabelled"
+                    },
                     err[2],
                     floor_jaw
                 );
@@ -217,6 +263,7 @@ pub fn track(a: TrackArgs) -> anyhow::Result<()> {
         rows.push(TrackRow {
             preset: name_of(preset),
             masks: name_of(&a.masks),
+            mouth_label: labelled,
             frames,
             seconds_per_frame: seconds / frames.max(1) as f64,
             evaluations_per_frame: evaluations as f64 / frames.max(1) as f64,
@@ -236,9 +283,10 @@ pub fn track(a: TrackArgs) -> anyhow::Result<()> {
             "mean vertex error in mm (median / 95th percentile); floor = error of E's minimum found from the truth"
         );
         println!(
-            "{:<10} {:<8} {:>6} {:>8} {:>7} {:>13} {:>13} {:>13} {:>13} {:>11} {:>9} {:>13}",
+            "{:<10} {:<8} {:<5} {:>6} {:>8} {:>7} {:>13} {:>13} {:>13} {:>13} {:>11} {:>9} {:>13}",
             "preset",
             "masks",
+            "mouth",
             "frames",
             "s/frame",
             "evals",
@@ -252,9 +300,10 @@ pub fn track(a: TrackArgs) -> anyhow::Result<()> {
         );
         for r in &rows {
             println!(
-                "{:<10} {:<8} {:>6} {:>8.2} {:>7.0} {:>6.3}/{:<6.3} {:>6.3}/{:<6.3} {:>6.3}/{:<6.3} {:>6.3}/{:<6.3} {:>11.2} {:>9.2} {:>6.2}/{:<6.2}",
+                "{:<10} {:<8} {:<5} {:>6} {:>8.2} {:>7.0} {:>6.3}/{:<6.3} {:>6.3}/{:<6.3} {:>6.3}/{:<6.3} {:>6.3}/{:<6.3} {:>11.2} {:>9.2} {:>6.2}/{:<6.2}",
                 r.preset,
                 r.masks,
+                if r.mouth_label { "yes" } else { "no" },
                 r.frames,
                 r.seconds_per_frame,
                 r.evaluations_per_frame,

@@ -10,6 +10,7 @@ use super::draw::viewport_size;
 use super::mesh::GpuMesh;
 use super::{GpuEnergy, Tile};
 use crate::capture::{Arch, ArchPoses};
+use crate::energy::BINS;
 use crate::energy::lens::Lens;
 use crate::energy::raster::{CLASS_BODY, CLASS_BOI, NEAR_MM};
 use crate::geometry::Pose;
@@ -117,7 +118,7 @@ impl GpuEnergy {
             })
         };
         use wgpu::BufferUsages as U;
-        let counts_size = (capacity.1 * 9 * 4) as u64;
+        let counts_size = (capacity.1 * BINS * 4) as u64;
         let draws = buffer(
             "draws",
             (capacity.0 * size_of::<DrawRecord>()) as u64,

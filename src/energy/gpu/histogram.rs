@@ -6,6 +6,7 @@ use super::atlas;
 use super::batch::{DrawRecord, PAGE_PARAMS_STRIDE, TileRecord};
 use super::{GpuEnergy, Tile};
 use crate::capture::Arch;
+use crate::energy::BINS;
 use crate::error::GpuError;
 
 /// Pixels per workgroup side in shaders/histogram.wgsl.
@@ -18,7 +19,7 @@ impl GpuEnergy {
         tiles: &[Tile],
         placement: &[atlas::Placement],
         draws: &[DrawRecord],
-    ) -> Result<Vec<[u64; 9]>, GpuError> {
+    ) -> Result<Vec<[u64; BINS]>, GpuError> {
         let n_pages = placement.last().map_or(0, |p| p.page + 1);
         let records: Vec<TileRecord> = tiles
             .iter()
@@ -50,7 +51,7 @@ impl GpuEnergy {
         queue.write_buffer(&batch.draws, 0, bytemuck::cast_slice(draws));
         queue.write_buffer(&batch.tiles, 0, bytemuck::cast_slice(&records));
         queue.write_buffer(&batch.pages, 0, &page_params);
-        let counts_size = (tiles.len() * 9 * 4) as u64;
+        let counts_size = (tiles.len() * BINS * 4) as u64;
         let mut encoder = device.create_command_encoder(&wgpu::CommandEncoderDescriptor {
             label: Some("energy"),
         });
@@ -100,7 +101,7 @@ impl GpuEnergy {
         queue.submit([encoder.finish()]);
         let bytes = self.ctx.read_back(&batch.staging, counts_size)?;
         Ok(bytemuck::cast_slice::<u8, u32>(&bytes)
-            .chunks_exact(9)
+            .chunks_exact(BINS)
             .map(|c| std::array::from_fn(|k| c[k] as u64))
             .collect())
     }

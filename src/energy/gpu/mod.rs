@@ -29,7 +29,8 @@ use readback::ReadbackTarget;
 use super::lens::Lens;
 use super::raster::{self, Rect};
 use super::{
-    Counts, Energy, EnergyEngine, MaskTotals, Region, Scene, counts_with_outside, frame_totals,
+    BINS, Counts, Energy, EnergyEngine, MaskTotals, Region, Scene, counts_with_outside,
+    frame_totals,
 };
 use crate::capture::{Arch, ArchPoses, FrameMasks, PerArch};
 use crate::error::Result;
@@ -251,7 +252,7 @@ impl GpuEnergy {
         for e in &mut energies {
             for (k, totals) in self.frame.iter().enumerate() {
                 if let (Some(t), Some(cam)) = (totals, &self.scene.cameras[k]) {
-                    e.cameras[k] = counts_with_outside([0; 9], cam, self.totals(t, arch));
+                    e.cameras[k] = counts_with_outside([0; BINS], cam, self.totals(t, arch));
                 }
             }
         }
@@ -272,7 +273,7 @@ impl GpuEnergy {
         arch: Arch,
         candidates: &[ArchPoses],
         tiles: &[Tile],
-    ) -> Result<Vec<[u64; 9]>, GpuError> {
+    ) -> Result<Vec<[u64; BINS]>, GpuError> {
         let sizes: Vec<(u32, u32)> = tiles
             .iter()
             .map(|t| (t.rect.width, t.rect.height))

@@ -11,6 +11,7 @@ use super::atlas::PAGE;
 use super::batch::DrawRecord;
 use super::pipelines::{COLOUR_FORMAT, PipelineSpec, Pipelines, raster_module};
 use crate::capture::Arch;
+use crate::energy::{BINS, MASK_MOUTH, MASK_NONE, MASK_OWN};
 use crate::error::GpuError;
 
 /// The readback baseline's colour target, pipelines and staging buffer.
@@ -92,14 +93,14 @@ impl GpuEnergy {
         tiles: &[Tile],
         placement: &[atlas::Placement],
         draws: &[DrawRecord],
-    ) -> Result<Vec<[u64; 9]>, GpuError> {
+    ) -> Result<Vec<[u64; BINS]>, GpuError> {
         let n_pages = placement.last().map_or(0, |p| p.page + 1);
         let row_bytes = |w: u32| (w * 4).next_multiple_of(wgpu::COPY_BYTES_PER_ROW_ALIGNMENT);
         let mut guard = self.batch.lock().unwrap_or_else(|e| e.into_inner());
         let batch = self.batch_with_room(&mut guard, draws.len(), tiles.len(), n_pages);
         let (device, queue) = (&self.ctx.device, &self.ctx.queue);
         queue.write_buffer(&batch.draws, 0, bytemuck::cast_slice(draws));
-        let mut out = vec![[0u64; 9]; tiles.len()];
+        let mut out = vec![[0u64; BINS]; tiles.len()];
         for page in 0..n_pages {
             let on_page: Vec<usize> = (0..tiles.len())
                 .filter(|&i| placement[i].page == page)
@@ -201,18 +202,34 @@ fn tiles_arch(draws: &[DrawRecord], first: u32) -> Arch {
     }
 }
 
-/// The paper's colour counting, into the first six of the nine bins (the baseline cannot tell
-/// the other arch's pixels from background): white = mask uncovered, pink = mask under the
-/// body, light green = mask under the BOI, dark red = body off the mask, dark green = BOI off
-/// the mask (the paper's #Pixel_DGreen), black = neither. Alpha 0.5 puts the halves at 127/128.
+/// The paper's colour counting (the baseline cannot tell the other arch's pixels from
+/// background): white = mask uncovered, pink = mask under the body, light green = mask under
+/// the BOI, dark red = body off the mask, dark green = BOI off the mask (the paper's
+/// #Pixel_DGreen), black = neither; and blue for the mouth interior, uncovered, under the
+/// body (purple) or under the BOI (teal). Alpha 0.5 puts the halves at 127/128.
 fn colour_bin(rgba: &[u8]) -> usize {
-    let (r, g, b) = (rgba[0], rgba[1], rgba[2]);
-    match (r >= 192, g >= 192, b >= 192) {
-        (true, true, true) => 3,
-        (true, false, _) => 4,
-        (false, true, _) => 5,
-        _ if r >= 64 => 1,
-        _ if g >= 64 => 2,
-        _ => 0,
-    }
+    let (r, g, b) = (rgba[0] >= 64, rgba[1] >= 64, rgba[2] >= 64);
+    let (full_r, full_g, full_b) = (rgba[0] >= 192, rgba[1] >= 192, rgba[2] >= 192);
+    let (state, class) = if full_r && full_g {
+        (MASK_OWN, 0)
+    } else if full_r {
+        (MASK_OWN, 1)
+    } else if full_g {
+        (MASK_OWN, 2)
+    } else if full_b {
+        (MASK_MOUTH, 0)
+    } else {
+        let state = if b { MASK_MOUTH } else { MASK_NONE };
+        (
+            state,
+            if r {
+                1
+            } else if g {
+                2
+            } else {
+                0
+            },
+        )
+    };
+    state * 3 + class
 }
