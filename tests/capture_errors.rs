@@ -211,7 +211,10 @@ fn mesh_with_no_faces() {
 fn mesh_with_nan_vertices() {
     let (_t, dir) = fresh_capture();
     write_mesh(&dir, "v 0 0 0\nv nan 0 0\nv 0 1 0\ng boi\nf 1 2 3\n");
-    assert_mentions(&error_of(&dir), &["upper.obj", "`vertex 1`", "non-finite"]);
+    assert_mentions(
+        &error_of(&dir),
+        &["upper.obj", "`vertex 2 (counting from 1)`", "non-finite"],
+    );
 }
 
 #[test]
@@ -220,7 +223,12 @@ fn mesh_with_face_index_out_of_range() {
     write_mesh(&dir, "v 0 0 0\nv 1 0 0\nv 0 1 0\ng boi\nf 1 2 3\nf 1 2 9\n");
     assert_mentions(
         &error_of(&dir),
-        &["upper.obj", "`face 1`", "vertex 8", "3 vertices"],
+        &[
+            "upper.obj",
+            "`face 2 (counting from 1)`",
+            "vertex 9 (counting from 1)",
+            "3 vertices",
+        ],
     );
 }
 

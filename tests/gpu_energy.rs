@@ -33,8 +33,11 @@ fn rect_mask(x0: u32, y0: u32, x1: u32, y1: u32) -> FrameMasks {
     labelled_mask(&[((x0, y0, x1, y1), 1)])
 }
 
-/// A 100x80 mask with each rectangle (x0, y0, x1, y1) set to its label bits.
-fn labelled_mask(rects: &[((u32, u32, u32, u32), u8)]) -> FrameMasks {
+/// A pixel rectangle (x0, y0, x1, y1), x1 and y1 excluded.
+type PixelRect = (u32, u32, u32, u32);
+
+/// A 100x80 mask with each rectangle set to its label bits.
+fn labelled_mask(rects: &[(PixelRect, u8)]) -> FrameMasks {
     let mut data = vec![0u8; 100 * 80];
     for &((x0, y0, x1, y1), label) in rects {
         for y in y0..y1 {

@@ -156,6 +156,21 @@ fn every_tracking_rule_names_its_field_and_range() {
             ),
             (r#"{"settle_mm":-1}"#, "settle_mm", "from 0 to 100"),
             (
+                r#"{"labelled":{"jaw_prior_grid":[5,3,101]}}"#,
+                "labelled.jaw_prior_grid[2]",
+                "from 0 to 100",
+            ),
+            (
+                r#"{"labelled":{"jaw_prior_nearest":10001}}"#,
+                "labelled.jaw_prior_nearest",
+                "from 0 to 10000",
+            ),
+            (
+                r#"{"labelled":{"sample_rounds":101}}"#,
+                "labelled.sample_rounds",
+                "from 0 to 100",
+            ),
+            (
                 r#"{"low_confidence_area_error":2}"#,
                 "low_confidence_area_error",
                 "from 0 to 1",

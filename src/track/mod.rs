@@ -16,5 +16,7 @@ pub mod sequence;
 pub mod session;
 
 pub use search::{Found, SearchSettings, search};
-pub use sequence::{FrameResult, Status, TrackSettings, TrackState, track_frames};
+pub use sequence::{
+    FrameResult, LabelledSettings, Status, TrackSettings, TrackState, track_frames,
+};
 pub use session::{Session, SessionOptions, Summary, score_records};

@@ -169,7 +169,7 @@ impl Mesh {
         {
             return Err(Error::invalid(
                 path,
-                format!("vertex {i}"),
+                format!("vertex {} (counting from 1)", i + 1),
                 format!("has a non-finite coordinate {:?}", self.positions[i]),
             ));
         }
@@ -181,10 +181,10 @@ impl Mesh {
         {
             return Err(Error::invalid(
                 path,
-                format!("face {i}"),
+                format!("face {} (counting from 1)", i + 1),
                 format!(
-                    "refers to vertex {} but the mesh has {n} vertices",
-                    self.triangles[i].iter().max().copied().unwrap_or(0)
+                    "refers to vertex {} (counting from 1) but the mesh has {n} vertices",
+                    self.triangles[i].iter().max().map_or(0, |&v| v as u64 + 1)
                 ),
             ));
         }

@@ -100,7 +100,7 @@ pub(crate) fn read_ply(path: &Path) -> Result<RawMesh> {
             p[k] = v.get(*name).and_then(scalar).ok_or_else(|| {
                 Error::invalid(
                     path,
-                    format!("vertex {i}"),
+                    format!("vertex {} (counting from 1)", i + 1),
                     format!("has no numeric `{name}`"),
                 )
             })? as f32;
@@ -114,13 +114,17 @@ pub(crate) fn read_ply(path: &Path) -> Result<RawMesh> {
             .or_else(|| f.get("vertex_index"))
             .and_then(index_list)
             .ok_or_else(|| {
-                Error::invalid(path, format!("face {i}"), "has no `vertex_indices` list")
+                Error::invalid(
+                    path,
+                    format!("face {} (counting from 1)", i + 1),
+                    "has no `vertex_indices` list",
+                )
             })?;
         if list.len() < 3 || list.iter().any(|&x| x < 0 || x > u32::MAX as i64) {
             return Err(Error::invalid(
                 path,
-                format!("face {i}"),
-                format!("invalid vertex list {list:?}"),
+                format!("face {} (counting from 1)", i + 1),
+                format!("invalid vertex list {list:?} (indices count from 0 in PLY)"),
             ));
         }
         for k in 1..list.len() - 1 {
