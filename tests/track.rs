@@ -111,25 +111,6 @@ fn a_short_clean_sequence_is_tracked_accurately() {
     assert!(!t.path().join("tracks.json.journal").exists());
 }
 
-/// A realistic capture whose masks label the visible mouth interior, once per test binary.
-fn labelled_capture() -> &'static Path {
-    static DIR: std::sync::OnceLock<tempfile::TempDir> = std::sync::OnceLock::new();
-    DIR.get_or_init(|| {
-        let t = tempfile::tempdir().unwrap();
-        let opts = SynthOptions {
-            frames: 4,
-            seed: 2,
-            preset: Preset::Realistic,
-            ..SynthOptions::default()
-        };
-        generate(&t.path().join("c"), &opts, &|| {}).unwrap();
-        t
-    })
-    .path()
-    .join("c")
-    .leak()
-}
-
 fn poses_of(path: &Path) -> Vec<serde_json::Value> {
     let t: serde_json::Value =
         serde_json::from_str(&std::fs::read_to_string(path).unwrap()).unwrap();
@@ -147,7 +128,8 @@ fn poses_of(path: &Path) -> Vec<serde_json::Value> {
 #[test]
 fn the_mouth_label_adds_a_term_and_changes_nothing_else() {
     let t = tempfile::tempdir().unwrap();
-    let labelled = labelled_capture();
+    // The realistic template's masks label the mouth.
+    let labelled = common::template(Preset::Realistic, MaskKind::PerArch);
     let unlabelled = t.path().join("unlabelled");
     copy_dir(labelled, &unlabelled);
     let cj = unlabelled.join("capture.json");

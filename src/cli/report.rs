@@ -15,8 +15,9 @@ pub fn notes(c: &Capture) {
     }
 }
 
-/// A capture's summary; `pixels` (each camera's labelled pixels) when its masks were decoded.
-pub fn capture(c: &Capture, pixels: Option<&[super::run::LabelPixels]>) {
+/// A capture's summary; `pixels` (each camera's mean upper, lower and mouth pixels per mask)
+/// when its masks were decoded.
+pub fn capture(c: &Capture, pixels: Option<&[[f64; 3]]>) {
     println!("capture {}: valid", c.dir.display());
     let last = c.first_frame + c.frame_count - 1;
     println!(
@@ -33,7 +34,7 @@ pub fn capture(c: &Capture, pixels: Option<&[super::run::LabelPixels]>) {
     let mean_px = |k: usize| match pixels {
         None => "-".to_string(),
         Some(p) => {
-            let [u, l, m] = p[k].mean();
+            let [u, l, m] = p[k];
             match (c.mask_mode, c.mouth) {
                 (jawtrack::capture::MaskMode::Combined, Some(_)) => format!("{u:.0} / {m:.0}"),
                 (jawtrack::capture::MaskMode::Combined, None) => format!("{u:.0}"),

@@ -14,6 +14,7 @@ pub struct Args {
 pub fn run(a: Args) -> anyhow::Result<()> {
     let (capture, pixels) =
         super::run::open_and_check(&a.capture, a.load.open_options(), !a.quick)?;
-    super::report::capture(&capture, pixels.as_deref());
+    let means: Option<Vec<[f64; 3]>> = pixels.map(|p| p.iter().map(|c| c.mean()).collect());
+    super::report::capture(&capture, means.as_deref());
     Ok(())
 }

@@ -22,12 +22,7 @@ pub const NEAR_MM: f64 = 1.0;
 /// band; triangles touching them are dropped (never the case for teeth in view).
 const GUARD_PIXELS: f64 = 1.0e6;
 
-/// Per-pixel class of a rendered model.
-pub const CLASS_NONE: u8 = 0;
-pub const CLASS_BODY: u8 = 1;
-pub const CLASS_BOI: u8 = 2;
-
-pub use super::target::{Rect, Target};
+pub use super::target::{CLASS_BODY, CLASS_BOI, CLASS_NONE, Rect, Target};
 
 /// A rigid transform as an f32 3 x 4 matrix (as a GPU would hold it).
 #[derive(Debug, Clone, Copy, Default)]

@@ -1,7 +1,10 @@
 //! What the rasteriser draws into: a pixel rectangle of an image, and a target over one
 //! (depth and class per pixel).
 
-use super::raster::CLASS_NONE;
+/// Per-pixel class of a rendered model.
+pub const CLASS_NONE: u8 = 0;
+pub const CLASS_BODY: u8 = 1;
+pub const CLASS_BOI: u8 = 2;
 
 /// A pixel rectangle `[x0, x0 + width) x [y0, y0 + height)` of an image.
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
