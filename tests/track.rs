@@ -163,6 +163,52 @@ fn the_mouth_label_adds_a_term_and_changes_nothing_else() {
     );
 }
 
+/// Overlays show the teeth labels in white and the mouth interior in blue, never one as the
+/// other (the paper's colours, plus ours for the mouth).
+#[test]
+fn overlays_tell_the_mouth_from_the_teeth() {
+    use jawtrack::capture::masks::MOUTH_BIT;
+    let t = tempfile::tempdir().unwrap();
+    let capture = common::template(Preset::Realistic, MaskKind::PerArch);
+    let overlays = t.path().join("overlays");
+    track(
+        capture,
+        &t.path().join("tracks.json"),
+        &["--frames", "0..3", "--overlays", overlays.to_str().unwrap()],
+    );
+    let c = Capture::open(capture).unwrap();
+    // The front camera in the frame where the mouth is widest open.
+    let (frame, mask) = (0..3)
+        .map(|f| (f, c.load_masks(f).unwrap().masks[0].clone().unwrap()))
+        .max_by_key(|(_, m)| m.count(MOUTH_BIT))
+        .unwrap();
+    let name = &c.cameras[0].calibrated.name;
+    let picture = image::open(overlays.join(name).join(format!("{frame:06}.png")))
+        .unwrap()
+        .to_rgb8();
+    assert_eq!(
+        (picture.width(), picture.height()),
+        (mask.width, mask.height)
+    );
+    let (mut blue, mut mouth) = (0, 0);
+    for (px, &label) in picture.pixels().zip(&mask.data) {
+        let [r, g, b] = px.0;
+        let white = r >= 200 && g >= 200 && b >= 200;
+        let pure_blue = r == 0 && g == 0 && b > 100;
+        if label & MOUTH_BIT != 0 {
+            mouth += 1;
+            assert!(!white, "a mouth pixel drawn as teeth");
+            blue += pure_blue as usize;
+        } else {
+            assert!(!pure_blue, "a pixel off the mouth drawn as mouth");
+        }
+    }
+    assert!(
+        mouth > 100 && blue > mouth / 2,
+        "{blue} of {mouth} mouth pixels blue"
+    );
+}
+
 #[test]
 fn an_interrupted_run_resumes_after_its_last_complete_frame() {
     let t = tempfile::tempdir().unwrap();

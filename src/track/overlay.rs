@@ -1,10 +1,12 @@
-//! Overlays, the paper's Fig. 9/10: per camera and frame, the segmentation in white, the
-//! models in red at alpha 0.5 (so overlap is pink) and the boundary of interest in green, at
-//! the masks' resolution; on top of the video frame when the capture has images/.
+//! Overlays, the paper's Fig. 9/10: per camera and frame, the segmentation in white (and the
+//! visible mouth interior, when the masks label it, in blue), the models in red at alpha 0.5
+//! (so overlap is pink) and the boundary of interest in green, at the masks' resolution; on
+//! top of the video frame when the capture has images/.
 
 use std::path::{Path, PathBuf};
 
-use crate::capture::{ArchPoses, Capture, FrameMasks, write_atomic};
+use crate::capture::masks::MOUTH_BIT;
+use crate::capture::{ArchPoses, Capture, FrameMasks, LOWER_BIT, UPPER_BIT, write_atomic};
 use crate::energy::raster::{CLASS_BODY, CLASS_BOI, render_labels};
 use crate::error::{Error, Result};
 
@@ -62,8 +64,11 @@ pub fn write_overlays(
         };
         for (i, px) in rgb.pixels_mut().enumerate() {
             let mut c = px.0;
-            if mask.data[i] != 0 {
+            let label = mask.data[i];
+            if label & (UPPER_BIT | LOWER_BIT) != 0 {
                 c = blend(c, [255, 255, 255], 0.85);
+            } else if label & MOUTH_BIT != 0 {
+                c = blend(c, [0, 0, 255], 0.6);
             }
             c = match classes[i] {
                 CLASS_BODY => blend(c, [255, 0, 0], 0.5),
