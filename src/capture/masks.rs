@@ -36,6 +36,29 @@ impl std::fmt::Display for MaskMode {
 }
 
 impl MaskMode {
+    /// `masks.mouth` of `capture_json` checked against this mode: a byte, not an arch's
+    /// label, and below 128 with combined masks (where 128 and above are teeth).
+    pub fn mouth_label(&self, value: Option<i64>, capture_json: &Path) -> Result<Option<u8>> {
+        let Some(v) = value else {
+            return Ok(None);
+        };
+        let why = match u8::try_from(v) {
+            Err(_) => Some(format!("a mask value must be 0..255, found {v}")),
+            Ok(v) => match *self {
+                MaskMode::PerArch { upper, lower } => {
+                    (v == upper || v == lower).then(|| format!("it is an arch's label ({v})"))
+                }
+                MaskMode::Combined => {
+                    (v >= 128).then(|| format!("{v} would count as teeth: it must be below 128"))
+                }
+            },
+        };
+        match why {
+            Some(why) => Err(Error::invalid(capture_json, "masks.mouth", why)),
+            None => Ok(Some(v as u8)),
+        }
+    }
+
     /// The label bits of a mask pixel's value; `mouth` is the value of the visible mouth
     /// interior, when the masks label it (checked at open not to be an arch's value).
     pub fn label_of(&self, value: u8, mouth: Option<u8>) -> u8 {

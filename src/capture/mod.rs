@@ -263,30 +263,7 @@ impl Capture {
                 ));
             }
         }
-        let mouth = match cj.masks.mouth {
-            None => None,
-            Some(v) if !(0..=255).contains(&v) => {
-                return Err(Error::invalid(
-                    &capture_path,
-                    "masks.mouth",
-                    format!("a mask value must be 0..255, found {v}"),
-                ));
-            }
-            Some(v) => {
-                let v = v as u8;
-                let clash = match mask_mode {
-                    MaskMode::PerArch { upper, lower } => {
-                        (v == upper || v == lower).then(|| format!("it is an arch's label ({v})"))
-                    }
-                    MaskMode::Combined => (v >= 128)
-                        .then(|| format!("{v} would count as teeth: it must be below 128")),
-                };
-                if let Some(why) = clash {
-                    return Err(Error::invalid(&capture_path, "masks.mouth", why));
-                }
-                Some(v)
-            }
-        };
+        let mouth = mask_mode.mouth_label(cj.masks.mouth, &capture_path)?;
         let mut cameras = Vec::with_capacity(cj.cameras.len());
         let mask_dir = inside("masks.dir", &cj.masks.dir)?;
         for (i, name) in cj.cameras.iter().enumerate() {
