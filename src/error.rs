@@ -110,3 +110,32 @@ impl Error {
         }
     }
 }
+
+/// A number as an error message shows it: as is when it reads well, in exponent form when it
+/// would run to hundreds of digits (1e308 is `1e308`, not 309 figures).
+pub struct Shown(pub f64);
+
+impl std::fmt::Display for Shown {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        let a = self.0.abs();
+        if a == 0.0 || !a.is_finite() || (1e-4..1e7).contains(&a) {
+            write!(f, "{}", self.0)
+        } else {
+            write!(f, "{:e}", self.0)
+        }
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::Shown;
+
+    #[test]
+    fn huge_and_tiny_numbers_are_shown_with_an_exponent() {
+        assert_eq!(Shown(1e308).to_string(), "1e308");
+        assert_eq!(Shown(-2.5e-9).to_string(), "-2.5e-9");
+        assert_eq!(Shown(0.25).to_string(), "0.25");
+        assert_eq!(Shown(150.0).to_string(), "150");
+        assert_eq!(Shown(f64::NAN).to_string(), "NaN");
+    }
+}

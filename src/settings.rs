@@ -6,7 +6,7 @@
 
 use std::path::Path;
 
-use crate::error::{Error, Result};
+use crate::error::{Error, Result, Shown};
 
 /// The rules, applied field by field under a JSON path prefix.
 pub struct Rules<'a> {
@@ -50,7 +50,7 @@ impl<'a> Rules<'a> {
         } else {
             Err(self.fail(
                 field,
-                format!("must be a number from {lo} to {hi}, found {value}"),
+                format!("must be a number from {lo} to {hi}, found {}", Shown(value)),
             ))
         }
     }
@@ -62,7 +62,10 @@ impl<'a> Rules<'a> {
         } else {
             Err(self.fail(
                 field,
-                format!("must be a number above {lo} and at most {hi}, found {value}"),
+                format!(
+                    "must be a number above {lo} and at most {hi}, found {}",
+                    Shown(value)
+                ),
             ))
         }
     }

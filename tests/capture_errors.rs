@@ -4,22 +4,8 @@ mod common;
 
 use std::path::Path;
 
-use common::{edit_json, fresh_capture};
+use common::{assert_mentions, edit_json, error_of, fresh_capture};
 use jawtrack::capture::Capture;
-
-/// Open the capture and return the error text; panics if it opened.
-fn error_of(dir: &Path) -> String {
-    match Capture::open(dir) {
-        Ok(_) => panic!("{} opened without error", dir.display()),
-        Err(e) => e.to_string(),
-    }
-}
-
-fn assert_mentions(msg: &str, parts: &[&str]) {
-    for p in parts {
-        assert!(msg.contains(p), "error {msg:?} does not mention {p:?}");
-    }
-}
 
 #[test]
 fn the_template_opens() {

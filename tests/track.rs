@@ -254,6 +254,49 @@ fn an_interrupted_run_resumes_after_its_last_complete_frame() {
     );
 }
 
+/// Found by hostile input (bf99878): a resumed run re-read its poses from JSON and went on from
+/// slightly different numbers (`…810006` → `…81001`). Killed with SIGKILL once it has written
+/// `k` frames and resumed, a run must write the very bytes an uninterrupted one does.
+#[test]
+fn a_run_killed_and_resumed_writes_the_same_bytes_as_one_never_interrupted() {
+    let t = tempfile::tempdir().unwrap();
+    let cap = capture48();
+    let c = cap.to_str().unwrap();
+    let whole = t.path().join("whole.json");
+    track(cap, &whole, &["--frames", "0..7"]);
+    for k in [1, 4] {
+        let out = t.path().join(format!("killed{k}.json"));
+        let journal = t.path().join(format!("killed{k}.json.journal"));
+        let mut child = Command::new(env!("CARGO_BIN_EXE_jawtrack"))
+            .args(["track", c, "-o", out.to_str().unwrap(), "--frames", "0..7"])
+            .args(["--backend", "cpu"])
+            .stdout(std::process::Stdio::null())
+            .stderr(std::process::Stdio::null())
+            .spawn()
+            .unwrap();
+        // The journal's head line, then one line per frame.
+        let lines = || {
+            std::fs::read_to_string(&journal)
+                .map(|s| s.matches('\n').count())
+                .unwrap_or(0)
+        };
+        while lines() < k + 1 {
+            assert!(
+                child.try_wait().unwrap().is_none(),
+                "the run ended before it could be killed after {k} frames"
+            );
+            std::thread::sleep(std::time::Duration::from_millis(5));
+        }
+        child.kill().unwrap(); // SIGKILL on Unix
+        child.wait().unwrap();
+        track(cap, &out, &["--frames", "0..7", "--resume"]);
+        assert!(
+            std::fs::read(&whole).unwrap() == std::fs::read(&out).unwrap(),
+            "killed after {k} frames and resumed, tracks.json differs from an uninterrupted run's"
+        );
+    }
+}
+
 #[test]
 fn frames_without_masks_keep_the_last_pose_and_tracking_recovers() {
     let t = tempfile::tempdir().unwrap();

@@ -3,7 +3,7 @@
 use std::path::Path;
 
 use super::json::{self, CameraJson, check_finite, read_json};
-use crate::error::{Error, Result};
+use crate::error::{Error, Result, Shown};
 use crate::geometry::Camera;
 
 /// Read a cameras/<name>.json file and validate every field.
@@ -37,14 +37,17 @@ pub fn camera_from_json(cj: &CameraJson, path: &Path, name: &str) -> Result<Came
             return Err(Error::invalid(
                 path,
                 field,
-                format!("the focal length must be positive, found {v}"),
+                format!("the focal length must be positive, found {}", Shown(v)),
             ));
         }
         if v > MAX_FOCAL_PX {
             return Err(Error::invalid(
                 path,
                 field,
-                format!("a focal length of {v} px is beyond {MAX_FOCAL_PX} px: not a camera"),
+                format!(
+                    "a focal length of {} px is beyond {MAX_FOCAL_PX} px: not a camera",
+                    Shown(v)
+                ),
             ));
         }
     }
@@ -53,7 +56,10 @@ pub fn camera_from_json(cj: &CameraJson, path: &Path, name: &str) -> Result<Came
             return Err(Error::invalid(
                 path,
                 field,
-                format!("the principal point {v} lies more than ten image sides away"),
+                format!(
+                    "the principal point {} lies more than ten image sides away",
+                    Shown(v)
+                ),
             ));
         }
     }

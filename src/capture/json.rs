@@ -7,7 +7,7 @@ use std::path::Path;
 use nalgebra::Vector3;
 use serde::{Deserialize, Serialize, de::DeserializeOwned};
 
-use crate::error::{Error, Result};
+use crate::error::{Error, Result, Shown};
 use crate::geometry::Pose;
 
 pub const CAPTURE_FORMAT: &str = "jawtrack-capture/1";
@@ -111,7 +111,8 @@ impl PoseJson {
                 path,
                 format!("{field}.translation"),
                 format!(
-                    "{t} mm is beyond {MAX_TRANSLATION_MM} mm (1 km): not a pose in millimetres"
+                    "{} mm is beyond {MAX_TRANSLATION_MM} mm (1 km): not a pose in millimetres",
+                    Shown(*t)
                 ),
             ));
         }

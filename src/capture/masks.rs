@@ -3,6 +3,7 @@
 //! [`LabelMask::reduced`]), as the cameras saw them: with lens distortion, the energy draws
 //! the models through the lens.
 
+use std::collections::BTreeSet;
 use std::path::Path;
 
 use crate::error::{Error, Result};
@@ -152,19 +153,63 @@ pub fn mask_header(path: &Path, mode: MaskMode) -> Result<(u32, u32)> {
     let decoder = open_image(path)?.into_decoder().map_err(image_error)?;
     let colour = decoder.color_type();
     let single_channel = colour == image::ColorType::L8;
+    let png = png_ends(path)?;
     if matches!(mode, MaskMode::PerArch { .. }) && !single_channel {
-        return Err(per_arch_format_error(path, colour));
+        return Err(per_arch_format_error(path, colour, png.palette));
+    }
+    if png.is_png && !png.complete {
+        return Err(Error::invalid(
+            path,
+            "file",
+            "truncated: the PNG does not end with its IEND chunk",
+        ));
     }
     Ok(decoder.dimensions())
 }
 
-fn per_arch_format_error(path: &Path, colour: image::ColorType) -> Error {
+/// What a PNG's two ends say: whether it is one, whether its colour type is a palette, whether
+/// it ends with its IEND chunk (a file cut short does not), read without decoding it.
+struct PngEnds {
+    is_png: bool,
+    palette: bool,
+    complete: bool,
+}
+
+fn png_ends(path: &Path) -> Result<PngEnds> {
+    use std::io::{Read, Seek, SeekFrom};
+    const SIGNATURE: [u8; 8] = [0x89, b'P', b'N', b'G', b'\r', b'\n', 0x1a, b'\n'];
+    const IEND: [u8; 12] = [0, 0, 0, 0, b'I', b'E', b'N', b'D', 0xae, 0x42, 0x60, 0x82];
+    let (mut file, len) = crate::capture::read::open_input(path, "mask")?;
+    let io = |e| Error::read(path, "mask", e);
+    let mut head = [0u8; 26];
+    if len < 26 + 12 || file.read_exact(&mut head).is_err() || head[..8] != SIGNATURE {
+        return Ok(PngEnds {
+            is_png: len >= 8 && head[..8] == SIGNATURE,
+            palette: false,
+            complete: false,
+        });
+    }
+    let mut tail = [0u8; 12];
+    file.seek(SeekFrom::End(-12)).map_err(io)?;
+    file.read_exact(&mut tail).map_err(io)?;
+    Ok(PngEnds {
+        is_png: true,
+        // IHDR comes first: signature, length, "IHDR", width, height, bit depth, colour type.
+        palette: head[25] == 3,
+        complete: tail == IEND,
+    })
+}
+
+fn per_arch_format_error(path: &Path, colour: image::ColorType, palette: bool) -> Error {
+    let found = if palette {
+        "a palette (indexed-colour) PNG".to_string()
+    } else {
+        format!("{colour:?}")
+    };
     Error::invalid(
         path,
         "pixel format",
-        format!(
-            "per-arch masks must be 8-bit single-channel (greyscale) PNGs, found {colour:?} (a palette PNG reads as colour)"
-        ),
+        format!("per-arch masks must be 8-bit single-channel (greyscale) PNGs, found {found}"),
     )
 }
 
@@ -181,7 +226,8 @@ pub fn decode_mask(path: &Path, mode: MaskMode, mouth: Option<u8>) -> Result<Lab
         (image::DynamicImage::ImageLuma8(g), _) => g.into_raw(),
         (other, MaskMode::Combined) => other.to_luma8().into_raw(),
         (other, MaskMode::PerArch { .. }) => {
-            return Err(per_arch_format_error(path, other.color()));
+            let palette = png_ends(path)?.palette;
+            return Err(per_arch_format_error(path, other.color(), palette));
         }
     };
     Ok(LabelMask {
@@ -189,6 +235,70 @@ pub fn decode_mask(path: &Path, mode: MaskMode, mouth: Option<u8>) -> Result<Lab
         height,
         data: grey.into_iter().map(|v| mode.label_of(v, mouth)).collect(),
     })
+}
+
+/// List a camera's mask files and check that they share one size (headers only).
+/// What a camera's mask folder holds: the masks' common size and the frames present.
+pub(super) type MaskScan = (Option<(u32, u32)>, BTreeSet<u32>);
+
+/// A camera's mask size read at 1/`k` of its resolution; `k` must divide both sides (so that
+/// the scaled intrinsics stay exact).
+pub(super) fn reduced_size((w, h): (u32, u32), k: u32, cam_dir: &Path) -> Result<(u32, u32)> {
+    if k <= 1 {
+        return Ok((w, h));
+    }
+    if w % k != 0 || h % k != 0 {
+        return Err(Error::invalid(
+            cam_dir,
+            "size",
+            format!(
+                "masks of {w}x{h} cannot be read at 1/{k} of their resolution: {k} must divide both sides"
+            ),
+        ));
+    }
+    Ok((w / k, h / k))
+}
+
+/// `root`: the capture folder, which the mask files may not link out of (`None`: they may).
+pub(super) fn scan_masks(cam_dir: &Path, mode: MaskMode, root: Option<&Path>) -> Result<MaskScan> {
+    let mut frames = BTreeSet::new();
+    let entries = match std::fs::read_dir(cam_dir) {
+        Ok(e) => e,
+        Err(e) if e.kind() == std::io::ErrorKind::NotFound => return Ok((None, frames)),
+        Err(e) => return Err(Error::read(cam_dir, "mask folder", e)),
+    };
+    for entry in entries {
+        let entry = entry.map_err(|e| Error::read(cam_dir, "mask folder", e))?;
+        let name = entry.file_name();
+        let Some(name) = name.to_str() else { continue };
+        if let Some(stem) = name.strip_suffix(".png")
+            && stem.len() == 6
+            && stem.bytes().all(|b| b.is_ascii_digit())
+        {
+            frames.insert(stem.parse::<u32>().expect("six digits"));
+        }
+    }
+    let mut size: Option<((u32, u32), u32)> = None;
+    for &f in &frames {
+        let path = cam_dir.join(format!("{f:06}.png"));
+        super::paths::listed_file_inside(&path, root)?;
+        let dims = mask_header(&path, mode)?;
+        match size {
+            None => size = Some((dims, f)),
+            Some((s, f0)) if s != dims => {
+                return Err(Error::invalid(
+                    &path,
+                    "size",
+                    format!(
+                        "{}x{} differs from {:06}.png ({}x{}): all masks of a camera must have one size",
+                        dims.0, dims.1, f0, s.0, s.1
+                    ),
+                ));
+            }
+            _ => {}
+        }
+    }
+    Ok((size.map(|(s, _)| s), frames))
 }
 
 #[cfg(test)]

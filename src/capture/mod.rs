@@ -6,6 +6,7 @@ mod camera;
 pub mod json;
 pub mod masks;
 pub mod mesh;
+mod paths;
 pub mod read;
 mod write;
 
@@ -14,7 +15,7 @@ use std::path::{Path, PathBuf};
 
 use nalgebra::Vector2;
 
-use crate::error::{Error, Result};
+use crate::error::{Error, Result, Shown};
 use crate::geometry::{Camera, Pose, fit_rigid, triangulate};
 pub use arch::{Arch, ArchPoses, PerArch};
 pub use camera::{camera_from_json, read_camera};
@@ -242,7 +243,7 @@ impl Capture {
             if options.allow_outside {
                 Ok(dir.join(rel))
             } else {
-                path_inside(dir, &capture_path, field, rel)
+                paths::path_inside(dir, &capture_path, field, rel)
             }
         };
         let offsets = cj.frames.offsets.clone().unwrap_or_default();
@@ -269,14 +270,19 @@ impl Capture {
         for (i, name) in cj.cameras.iter().enumerate() {
             let camera_file = inside(&format!("cameras[{i}]"), &format!("cameras/{name}.json"))?;
             let calibrated = read_camera(&camera_file, name)?;
-            let (mask_size, files_present) = scan_masks(&mask_dir.join(name), mask_mode)?;
+            let cam_masks = inside(
+                &format!("masks.dir ({name}/)"),
+                &format!("{}/{name}", cj.masks.dir),
+            )?;
+            let root = (!options.allow_outside).then_some(dir);
+            let (mask_size, files_present) = masks::scan_masks(&cam_masks, mask_mode, root)?;
             let offset = offsets.get(name).copied().unwrap_or(0);
             let frames_present = files_present
                 .into_iter()
                 .filter_map(|f| u32::try_from(f as i64 - offset).ok())
                 .collect();
             let mask_size = mask_size
-                .map(|size| reduced_size(size, options.mask_reduce, &mask_dir.join(name)))
+                .map(|size| masks::reduced_size(size, options.mask_reduce, &cam_masks))
                 .transpose()?;
             cameras.push(CaptureCamera {
                 calibrated,
@@ -353,11 +359,11 @@ impl Capture {
             init: None,
             gt: None,
         };
-        let init_path = dir.join("init.json");
+        let init_path = paths::own_file(dir, "init.json", options.allow_outside)?;
         if init_path.exists() {
             capture.init = Some(capture.read_init(&init_path)?);
         }
-        let gt_path = dir.join("gt").join("poses.json");
+        let gt_path = paths::own_file(dir, "gt/poses.json", options.allow_outside)?;
         if gt_path.exists() {
             capture.gt = Some(read_poses(&gt_path)?);
         }
@@ -456,9 +462,17 @@ impl Capture {
                         ));
                         world.push(x);
                     }
-                    fit_rigid(&model, &world).map_err(|e| {
+                    let fitted = fit_rigid(&model, &world).map_err(|e| {
                         Error::invalid(&init_path, format!("{}.points", arch.name()), e.to_string())
-                    })
+                    })?;
+                    // Pixels in the image can still triangulate to nonsense (rays nearly
+                    // parallel): the pose must be one a pose file could give.
+                    json::PoseJson::from(&fitted)
+                        .to_pose(
+                            &init_path,
+                            &format!("{}.points (the pose they give)", arch.name()),
+                        )
+                        .map(|_| fitted)
                 }
             }
         };
@@ -526,6 +540,19 @@ impl Capture {
                                 )
                             })?;
                             check_finite(path, &format!("{f}.pixels.{cam}"), px)?;
+                            let calibrated = &self.cameras[c].calibrated;
+                            let (w, h) = (calibrated.width as f64, calibrated.height as f64);
+                            if !(0.0..=w).contains(&px[0]) || !(0.0..=h).contains(&px[1]) {
+                                return Err(Error::invalid(
+                                    path,
+                                    format!("{f}.pixels.{cam}"),
+                                    format!(
+                                        "({}, {}) lies outside the camera's {w}x{h} image: a point it sees lies in it",
+                                        Shown(px[0]),
+                                        Shown(px[1])
+                                    ),
+                                ));
+                            }
                             pixels.push((c, Vector2::new(px[0], px[1])));
                         }
                         out.push(InitPoint {
@@ -547,108 +574,6 @@ impl Capture {
 enum BoiRef {
     Group(String),
     List(PathBuf),
-}
-
-/// `rel` (capture.json's `field`) joined to the capture folder `dir`, refused when it leaves the
-/// folder: an absolute path, a `..` that climbs out, or a link that resolves outside.
-fn path_inside(dir: &Path, capture_path: &Path, field: &str, rel: &str) -> Result<PathBuf> {
-    use std::path::Component;
-    let outside = |why: &str| {
-        Error::invalid(
-            capture_path,
-            field,
-            format!(
-                "{why}: a capture reads only its own folder (`--allow-outside` lets it read elsewhere)"
-            ),
-        )
-    };
-    let rel_path = Path::new(rel);
-    let mut depth = 0i64;
-    for c in rel_path.components() {
-        match c {
-            Component::Prefix(_) | Component::RootDir => {
-                return Err(outside("an absolute path"));
-            }
-            Component::ParentDir => depth -= 1,
-            Component::Normal(_) => depth += 1,
-            Component::CurDir => {}
-        }
-        if depth < 0 {
-            return Err(outside("the path climbs out of the capture folder"));
-        }
-    }
-    let path = dir.join(rel_path);
-    // Links are followed where the file exists; a missing file is reported by its reader.
-    if let (Ok(real), Ok(root)) = (path.canonicalize(), dir.canonicalize())
-        && !real.starts_with(&root)
-    {
-        return Err(outside(
-            "the path resolves (through a link) outside the capture folder",
-        ));
-    }
-    Ok(path)
-}
-
-/// List a camera's mask files and check that they share one size (headers only).
-/// What a camera's mask folder holds: the masks' common size and the frames present.
-type MaskScan = (Option<(u32, u32)>, BTreeSet<u32>);
-
-/// A camera's mask size read at 1/`k` of its resolution; `k` must divide both sides (so that
-/// the scaled intrinsics stay exact).
-fn reduced_size((w, h): (u32, u32), k: u32, cam_dir: &Path) -> Result<(u32, u32)> {
-    if k <= 1 {
-        return Ok((w, h));
-    }
-    if w % k != 0 || h % k != 0 {
-        return Err(Error::invalid(
-            cam_dir,
-            "size",
-            format!(
-                "masks of {w}x{h} cannot be read at 1/{k} of their resolution: {k} must divide both sides"
-            ),
-        ));
-    }
-    Ok((w / k, h / k))
-}
-
-fn scan_masks(cam_dir: &Path, mode: MaskMode) -> Result<MaskScan> {
-    let mut frames = BTreeSet::new();
-    let entries = match std::fs::read_dir(cam_dir) {
-        Ok(e) => e,
-        Err(e) if e.kind() == std::io::ErrorKind::NotFound => return Ok((None, frames)),
-        Err(e) => return Err(Error::read(cam_dir, "mask folder", e)),
-    };
-    for entry in entries {
-        let entry = entry.map_err(|e| Error::read(cam_dir, "mask folder", e))?;
-        let name = entry.file_name();
-        let Some(name) = name.to_str() else { continue };
-        if let Some(stem) = name.strip_suffix(".png")
-            && stem.len() == 6
-            && stem.bytes().all(|b| b.is_ascii_digit())
-        {
-            frames.insert(stem.parse::<u32>().expect("six digits"));
-        }
-    }
-    let mut size: Option<((u32, u32), u32)> = None;
-    for &f in &frames {
-        let path = cam_dir.join(format!("{f:06}.png"));
-        let dims = masks::mask_header(&path, mode)?;
-        match size {
-            None => size = Some((dims, f)),
-            Some((s, f0)) if s != dims => {
-                return Err(Error::invalid(
-                    &path,
-                    "size",
-                    format!(
-                        "{}x{} differs from {:06}.png ({}x{}): all masks of a camera must have one size",
-                        dims.0, dims.1, f0, s.0, s.1
-                    ),
-                ));
-            }
-            _ => {}
-        }
-    }
-    Ok((size.map(|(s, _)| s), frames))
 }
 
 /// Read a pose file: `{"rotation": [[...], [...], [...]], "translation": [...]}`.

@@ -89,7 +89,7 @@ choice!(AdaptationArg => jawtrack::envelope::adapt::Adaptation {
 #[derive(clap::Args, Clone, Copy)]
 pub struct LoadArgs {
     /// Simplify each arch to at most this many triangles at load (instead of --simplify-mm).
-    #[arg(long)]
+    #[arg(long, value_parser = count_in(4, 100_000_000))]
     pub max_triangles: Option<usize>,
     /// Simplify each arch as far as its surface stays within this distance (mm) of the
     /// scan's; 0 keeps every triangle (a silhouette needs far fewer than a scan has).
@@ -123,6 +123,25 @@ fn non_negative_mm(s: &str) -> Result<f64, String> {
     match s.trim().parse::<f64>() {
         Ok(v) if v.is_finite() && (0.0..=100.0).contains(&v) => Ok(v),
         Ok(v) => Err(format!("must be a distance from 0 to 100 mm, found {v}")),
+        Err(e) => Err(format!("{s:?}: {e}")),
+    }
+}
+
+/// A flag's number: finite and from `lo` to `hi` (NaN and infinities are refused where they
+/// enter, not found later as a NaN energy or a pose that never converges).
+pub fn number_in(lo: f64, hi: f64) -> impl Fn(&str) -> Result<f64, String> + Clone {
+    move |s| match s.trim().parse::<f64>() {
+        Ok(v) if v.is_finite() && (lo..=hi).contains(&v) => Ok(v),
+        Ok(v) => Err(format!("must be a number from {lo} to {hi}, found {v:e}")),
+        Err(e) => Err(format!("{s:?}: {e}")),
+    }
+}
+
+/// A flag's count: from `lo` to `hi`.
+pub fn count_in(lo: usize, hi: usize) -> impl Fn(&str) -> Result<usize, String> + Clone {
+    move |s| match s.trim().parse::<usize>() {
+        Ok(v) if (lo..=hi).contains(&v) => Ok(v),
+        Ok(v) => Err(format!("must be from {lo} to {hi}, found {v}")),
         Err(e) => Err(format!("{s:?}: {e}")),
     }
 }

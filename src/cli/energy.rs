@@ -21,8 +21,8 @@ pub struct Args {
     /// Lower arch pose; default as for --upper.
     #[arg(long)]
     pub lower: Option<PathBuf>,
-    /// Weight of the boundary term.
-    #[arg(long, default_value_t = DEFAULT_LAMBDA)]
+    /// Weight of the boundary term (0 to 1000).
+    #[arg(long, default_value_t = DEFAULT_LAMBDA, value_parser = crate::cli::args::number_in(0.0, 1000.0))]
     pub lambda: f64,
     #[command(flatten)]
     pub load: LoadArgs,

@@ -22,13 +22,13 @@ pub struct BoiArgs {
     #[arg(long, value_parser = ["upper", "lower"])]
     pub arch: Option<String>,
     /// Depth of the band from the incisal edge (mm).
-    #[arg(long)]
+    #[arg(long, value_parser = crate::cli::args::number_in(0.01, 100.0))]
     pub band_mm: Option<f64>,
     /// Share of each half-arch (by arc length from the midline) that counts as front teeth.
-    #[arg(long)]
+    #[arg(long, value_parser = crate::cli::args::number_in(0.01, 1.0))]
     pub front_fraction: Option<f64>,
     /// Simplify to at most this many triangles before writing.
-    #[arg(long)]
+    #[arg(long, value_parser = crate::cli::args::count_in(4, 100_000_000))]
     pub max_triangles: Option<usize>,
 }
 

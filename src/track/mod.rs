@@ -1,5 +1,5 @@
 //! Tracking: the pose search per arch and frame (`search`), the frame loop around it
-//! (`sequence`), the jaw prior's starts (`prior`), what anatomy adds to the objective
+//! (`sequence`) and where it stands between frames (`state`), the jaw prior's starts (`prior`), what anatomy adds to the objective
 //! (`penalties`: the arches' non-penetration, `contact`, and the jaw's manifold, `manifold`),
 //! tracks.json as it is written (`output`), scoring against ground truth (`score`) and
 //! overlays (`overlay`).
@@ -14,9 +14,9 @@ pub mod score;
 pub mod search;
 pub mod sequence;
 pub mod session;
+pub mod state;
 
 pub use search::{Found, SearchSettings, search};
-pub use sequence::{
-    FrameResult, LabelledSettings, Status, TrackSettings, TrackState, track_frames,
-};
+pub use sequence::{FrameResult, LabelledSettings, Status, TrackSettings, track_frames};
 pub use session::{Session, SessionOptions, Summary, score_records};
+pub use state::TrackState;

@@ -3,7 +3,6 @@
 //! are read on a thread one frame ahead; every finished frame goes to an observer (the output
 //! writer and the progress bar), so memory does not grow with the masks of past frames.
 
-use std::collections::VecDeque;
 use std::sync::mpsc::sync_channel;
 use std::time::Instant;
 
@@ -14,6 +13,7 @@ use super::manifold::JawManifold;
 use super::penalties::Penalties;
 use super::prior::JawPrior;
 use super::search::{RADIUS_MM, SearchSettings, search};
+use super::state::{TrackState, as_written};
 pub use crate::capture::json::Status;
 use crate::capture::{Arch, ArchPoses, Capture, FrameMasks, MaskMode};
 use crate::energy::{Energy, EnergyEngine};
@@ -212,30 +212,6 @@ pub struct FrameResult {
     pub seconds: f64,
 }
 
-/// Where tracking stands: the last poses (and the ones before, for the velocity) and recent
-/// area errors of good frames.
-#[derive(Debug, Clone)]
-pub struct TrackState {
-    /// The last good poses, and the good ones of the frame before (for the velocity).
-    pub last: ArchPoses,
-    pub before: Option<ArchPoses>,
-    /// The estimate of a low-confidence frame since the last good one: the next frame also
-    /// tries to start from it (the motion may have gone on).
-    pub since_good: Option<ArchPoses>,
-    pub recent_area_errors: VecDeque<f64>,
-}
-
-impl TrackState {
-    pub fn new(first: ArchPoses) -> Self {
-        TrackState {
-            last: first,
-            before: None,
-            since_good: None,
-            recent_area_errors: VecDeque::new(),
-        }
-    }
-}
-
 /// The centre of an arch in its model frame (rotations of the search turn about it).
 pub fn centre(capture: &Capture, arch: Arch) -> Vector3<f64> {
     let (lo, hi) = capture.mesh(arch).bounds();
@@ -269,7 +245,7 @@ pub fn track_frames(
     let prior = JawPrior::new(
         &capture.upper,
         &capture.lower,
-        &state.last.jaw(),
+        &state.start.jaw(),
         settings.jaw_prior_grid,
         settings.jaw_prior_fine_grid,
         settings.jaw_prior_nearest,
@@ -279,7 +255,7 @@ pub fn track_frames(
         Contact::new(
             &capture.upper,
             &capture.lower,
-            &state.last.jaw(),
+            &state.start.jaw(),
             ContactSettings {
                 weight: settings.contact_weight,
                 tolerance_mm: settings.contact_tolerance_mm,
@@ -336,9 +312,8 @@ fn track_frame(
     state: &mut TrackState,
 ) -> Result<FrameResult> {
     if masks.masks.iter().all(Option::is_none) {
-        // No camera saw anything: keep the last good pose; the velocity restarts after.
-        state.before = None;
-        state.since_good = state.since_good.or(Some(state.last));
+        // No camera saw anything: keep the last good pose.
+        state.no_data();
         return Ok(FrameResult {
             frame,
             poses: state.last,
@@ -450,19 +425,12 @@ fn track_frame(
     } else {
         Status::Ok
     };
-    if status == Status::Ok {
-        // The velocity needs two good frames in a row.
-        state.before = state.since_good.is_none().then_some(state.last);
-        state.since_good = None;
-        state.last = poses;
-        state.recent_area_errors.push_back(worst_area_error);
-        if state.recent_area_errors.len() > settings.confidence_window {
-            state.recent_area_errors.pop_front();
-        }
-    } else {
-        // The last good pose stays a start; so does this estimate.
-        state.since_good = Some(poses);
-    }
+    state.advance(
+        status,
+        as_written(&poses),
+        worst_area_error,
+        settings.confidence_window,
+    );
     Ok(FrameResult {
         frame,
         poses,

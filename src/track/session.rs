@@ -10,7 +10,8 @@ use std::time::Instant;
 use super::output::{TracksWriter, record_poses};
 use super::overlay;
 use super::score::{ScoreReport, score};
-use super::sequence::{FrameResult, Status, TrackSettings, TrackState, track_frames};
+use super::sequence::{FrameResult, Status, TrackSettings, track_frames};
+use super::state::TrackState;
 use crate::capture::json::FrameRecordJson;
 use crate::capture::{ArchPoses, Capture};
 use crate::energy::{Backend, EnergyEngine, Region, Scene, open_engine};
@@ -109,22 +110,18 @@ impl<'c> Session<'c> {
             .last()
             .map_or(range.start, |r| r.frame + 1)
             .max(range.start);
-        let last_ok = done.iter().rev().find(|r| r.status() == Status::Ok);
-        let state = match last_ok {
-            Some(last_ok) if options.resume => {
-                let (last, _) = record_poses(&options.output, last_ok)?;
-                let mut state = TrackState::new(last);
-                let before = done
-                    .iter()
-                    .rev()
-                    .find(|r| r.frame + 1 == last_ok.frame && r.status() == Status::Ok);
-                state.before = before
-                    .map(|r| record_poses(&options.output, r))
-                    .transpose()?
-                    .map(|(p, _)| p);
-                state
-            }
-            _ => TrackState::new(capture.initial_poses()?),
+        // A resumed run goes on from the state the earlier one ended in, replayed from its
+        // records: the same starts, velocity and recent area errors.
+        let start = capture.initial_poses()?;
+        let state = if options.resume {
+            TrackState::replay(
+                start,
+                &done,
+                &options.output,
+                options.settings.confidence_window,
+            )?
+        } else {
+            TrackState::new(start)
         };
         let opened = open_engine(
             options.backend,

@@ -164,3 +164,17 @@ pub fn energy_region_matches_footprint(capture: &jawtrack::capture::Capture, off
     assert!(skipped * 2 > views, "{skipped} of {views}");
     compared
 }
+
+/// Open the capture and return the error text; panics if it opened.
+pub fn error_of(dir: &Path) -> String {
+    match jawtrack::capture::Capture::open(dir) {
+        Ok(_) => panic!("{} opened without error", dir.display()),
+        Err(e) => e.to_string(),
+    }
+}
+
+pub fn assert_mentions(msg: &str, parts: &[&str]) {
+    for p in parts {
+        assert!(msg.contains(p), "error {msg:?} does not mention {p:?}");
+    }
+}

@@ -23,7 +23,7 @@ pub struct LearnArgs {
     #[arg(short, long)]
     pub out: PathBuf,
     /// Alpha radius of the valid-range shapes, in parameter units.
-    #[arg(long, default_value_t = RigSettings::default().alpha)]
+    #[arg(long, default_value_t = RigSettings::default().alpha, value_parser = crate::cli::args::number_in(1e-6, 100.0))]
     pub alpha: f64,
     /// Seed of the networks' initial weights.
     #[arg(long, default_value_t = 0)]
@@ -50,7 +50,7 @@ pub struct EvalArgs {
     #[arg(long)]
     pub plots: Option<PathBuf>,
     /// Random rig poses for Fig. 13.
-    #[arg(long, default_value_t = 1000)]
+    #[arg(long, default_value_t = 1000, value_parser = crate::cli::args::count_in(1, 10_000_000))]
     pub samples: usize,
     /// Seed of the random rig poses.
     #[arg(long, default_value_t = 0)]

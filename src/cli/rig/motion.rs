@@ -16,8 +16,8 @@ pub struct AnimateArgs {
     /// Or a JSON file: [{"time": 0.0, "params": [d1, d2, d3]}, ...].
     #[arg(long, conflicts_with = "keys")]
     pub keys_file: Option<PathBuf>,
-    /// Frames per second.
-    #[arg(long, default_value_t = 24.0)]
+    /// Frames per second (above 0, at most 10000).
+    #[arg(long, default_value_t = 24.0, value_parser = crate::cli::args::number_in(1e-3, 10_000.0))]
     pub fps: f64,
     /// Where to write the jaw poses (jawtrack-jaw/1).
     #[arg(short, long)]
@@ -33,8 +33,8 @@ pub struct AnimateArgs {
 #[derive(clap::Args)]
 pub struct SampleArgs {
     pub rig: PathBuf,
-    /// How many poses.
-    #[arg(short = 'n', long, default_value_t = 1000)]
+    /// How many poses (at most 10 million).
+    #[arg(short = 'n', long, default_value_t = 1000, value_parser = crate::cli::args::count_in(1, 10_000_000))]
     pub count: usize,
     /// Draw each parameter over its own fixed range instead of the d1-dependent ones.
     #[arg(long)]

@@ -10,13 +10,16 @@ use jawtrack::rig::JawRig;
 use serde::Serialize;
 
 use super::load_poses;
-use crate::cli::args::{load_mesh, parse_vec3};
+use crate::cli::args::{load_mesh, number_in, parse_vec3};
 
 #[derive(clap::Args)]
 pub struct PoseArgs {
     pub rig: PathBuf,
+    #[arg(allow_hyphen_values = true, value_parser = number_in(-1e6, 1e6))]
     pub d1: f64,
+    #[arg(allow_hyphen_values = true, value_parser = number_in(-1e6, 1e6))]
     pub d2: f64,
+    #[arg(allow_hyphen_values = true, value_parser = number_in(-1e6, 1e6))]
     pub d3: f64,
     /// Clamp the parameters into the valid ranges before posing.
     #[arg(long)]

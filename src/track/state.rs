@@ -1,0 +1,203 @@
+//! Where tracking stands between frames, and how each frame's outcome moves it. A resumed run
+//! rebuilds this state by replaying the records an earlier run wrote through the same
+//! transitions, and every pose it keeps is the pose as written and read back, so the resumed
+//! run continues from exactly the state the uninterrupted one had: its tracks.json is
+//! byte-identical.
+
+use std::collections::VecDeque;
+use std::path::Path;
+
+use super::output::record_poses;
+use crate::capture::ArchPoses;
+use crate::capture::json::{FrameRecordJson, PoseJson, Status};
+use crate::error::{Error, Result};
+use crate::geometry::Pose;
+
+/// The last poses (and the ones before, for the velocity) and recent area errors of good
+/// frames.
+#[derive(Debug, Clone)]
+pub struct TrackState {
+    /// The poses the run started from (the capture's start): the jaw prior, contact and
+    /// manifold are fitted around them, so a resumed run fits the same ones.
+    pub start: ArchPoses,
+    /// The last good poses, and the good ones of the frame before (for the velocity).
+    pub last: ArchPoses,
+    pub before: Option<ArchPoses>,
+    /// The estimate of a low-confidence frame since the last good one: the next frame also
+    /// tries to start from it (the motion may have gone on).
+    pub since_good: Option<ArchPoses>,
+    pub recent_area_errors: VecDeque<f64>,
+}
+
+impl TrackState {
+    pub fn new(start: ArchPoses) -> Self {
+        TrackState {
+            start,
+            last: start,
+            before: None,
+            since_good: None,
+            recent_area_errors: VecDeque::new(),
+        }
+    }
+
+    /// A frame where no camera saw anything: the last good pose stays; the velocity restarts.
+    pub fn no_data(&mut self) {
+        self.before = None;
+        self.since_good = self.since_good.or(Some(self.last));
+    }
+
+    /// A tracked frame came out `status` at `poses` (as written: [`as_written`]), its worse
+    /// arch's area error `worst_area_error`; the last `window` good ones are kept.
+    pub fn advance(
+        &mut self,
+        status: Status,
+        poses: ArchPoses,
+        worst_area_error: f64,
+        window: usize,
+    ) {
+        match status {
+            Status::Ok => {
+                // The velocity needs two good frames in a row.
+                self.before = self.since_good.is_none().then_some(self.last);
+                self.since_good = None;
+                self.last = poses;
+                self.recent_area_errors.push_back(worst_area_error);
+                if self.recent_area_errors.len() > window {
+                    self.recent_area_errors.pop_front();
+                }
+            }
+            // The last good pose stays a start; so does this estimate.
+            Status::LowConfidence => self.since_good = Some(poses),
+            Status::NoData => self.no_data(),
+        }
+    }
+
+    /// The state after the `records` of `path` (frames an earlier run tracked from `start`, in
+    /// order, as that run wrote them).
+    pub fn replay(
+        start: ArchPoses,
+        records: &[FrameRecordJson],
+        path: &Path,
+        window: usize,
+    ) -> Result<TrackState> {
+        let mut state = TrackState::new(start);
+        for r in records {
+            let (poses, status) = record_poses(path, r)?;
+            let worst = match status {
+                Status::Ok => worst_area_error(path, r)?,
+                _ => f64::NAN,
+            };
+            state.advance(status, poses, worst, window);
+        }
+        Ok(state)
+    }
+}
+
+/// The larger of a record's two area errors, as the tracker took it (`f64::max`: an arch
+/// without mask pixels, written as null, does not count).
+fn worst_area_error(path: &Path, r: &FrameRecordJson) -> Result<f64> {
+    let field = format!("frame {}.area_error", r.frame);
+    let errors = r.area_error.as_ref().ok_or_else(|| {
+        Error::invalid(
+            path,
+            &field,
+            "missing in an `ok` frame: the run cannot be continued exactly (--force starts over)",
+        )
+    })?;
+    let of = |arch: &str| match errors.get(arch) {
+        Some(serde_json::Value::Null) => Ok(f64::NAN),
+        v => v
+            .and_then(|v| v.as_f64())
+            .filter(|e| e.is_finite())
+            .ok_or_else(|| {
+                Error::invalid(
+                    path,
+                    format!("{field}.{arch}"),
+                    "must be a finite number or null",
+                )
+            }),
+    };
+    Ok(of("upper")?.max(of("lower")?))
+}
+
+/// `poses` as a reader of their written record gets them back (the record's rotation matrix
+/// re-orthonormalised): what the tracker keeps, so that a resumed run, which can only read the
+/// record, starts the next frame from the same bits.
+pub fn as_written(poses: &ArchPoses) -> ArchPoses {
+    let read_back = |p: &Pose| {
+        PoseJson::from(p)
+            .to_pose(Path::new("tracks.json"), "pose")
+            .unwrap_or(*p)
+    };
+    ArchPoses {
+        upper: read_back(&poses.upper),
+        lower: read_back(&poses.lower),
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    fn poses(x: f64, turn: f64) -> ArchPoses {
+        ArchPoses {
+            upper: Pose::from_euler_tuple(&[0.01, turn, 0.0, x, 0.0, 0.0]),
+            lower: Pose::from_euler_tuple(&[0.2, turn, 0.03, x, -10.0, 3.0]),
+        }
+    }
+
+    fn record(frame: u32, status: Status, p: &ArchPoses, area: Option<[f64; 2]>) -> String {
+        let pose = |p: &Pose| serde_json::to_value(PoseJson::from(p)).unwrap();
+        let mut r = serde_json::json!({
+            "frame": frame, "upper": pose(&p.upper), "lower": pose(&p.lower),
+            "status": status.as_str(),
+        });
+        if let Some([u, l]) = area {
+            r["area_error"] = serde_json::json!({"upper": u, "lower": l});
+        }
+        r.to_string()
+    }
+
+    /// Every transition, replayed from the written records, leaves the state the live run had,
+    /// to the bit. As the tracker does, the live run keeps each pose as written and writes the
+    /// pose it found.
+    #[test]
+    fn replaying_the_written_records_rebuilds_the_state_exactly() {
+        let start = as_written(&poses(0.0, 0.0));
+        let frames = [
+            (Status::Ok, poses(0.1, 0.001), 0.031),
+            (Status::Ok, poses(0.2, 0.002), 0.0299999999999),
+            (Status::LowConfidence, poses(2.0, 0.05), 0.4),
+            (Status::NoData, poses(0.2, 0.002), f64::NAN),
+            (Status::Ok, poses(0.3, 1.0 / 3.0), 0.07),
+            (Status::Ok, poses(0.4, 0.1), 0.011),
+            (Status::Ok, poses(0.5, 0.2), 0.012),
+        ];
+        let mut live = TrackState::new(start);
+        let mut records = Vec::new();
+        for (i, &(status, p, area)) in frames.iter().enumerate() {
+            live.advance(status, as_written(&p), area, 3);
+            let area = (status != Status::NoData).then_some([area, area / 3.0]);
+            let line = record(i as u32, status, &p, area);
+            records.push(serde_json::from_str(&line).unwrap());
+        }
+        let replayed = TrackState::replay(start, &records, Path::new("j"), 3).unwrap();
+        assert_eq!(format!("{replayed:?}"), format!("{live:?}"));
+        assert_eq!(replayed.recent_area_errors.len(), 3);
+        assert!(replayed.before.is_some() && replayed.since_good.is_none());
+    }
+
+    #[test]
+    fn an_ok_record_without_its_area_error_cannot_be_continued_exactly() {
+        let p = poses(0.0, 0.0);
+        let r = serde_json::from_str(&record(0, Status::Ok, &p, None)).unwrap();
+        let e = TrackState::replay(p, &[r], Path::new("t.json"), 3).unwrap_err();
+        assert!(e.to_string().contains("frame 0.area_error"), "{e}");
+        let mut bad: serde_json::Value =
+            serde_json::from_str(&record(0, Status::Ok, &p, Some([0.1, 0.2]))).unwrap();
+        bad["area_error"]["lower"] = serde_json::json!("x");
+        let r = serde_json::from_value(bad).unwrap();
+        let e = TrackState::replay(p, &[r], Path::new("t.json"), 3).unwrap_err();
+        assert!(e.to_string().contains("area_error.lower"), "{e}");
+    }
+}
