@@ -142,11 +142,14 @@ fn mask_that_cannot_be_decoded() {
     let (_t, dir) = fresh_capture();
     std::fs::write(dir.join("masks/cam0/000003.png"), b"not a png at all").unwrap();
     assert_mentions(&error_of(&dir), &["masks/cam0/000003.png", "cannot decode"]);
-    // A good header with the data cut off: opening works, reading that frame fails.
+    // A good header and end with the data between broken: opening works (a file cut short is
+    // refused there: hostile_input.rs), reading that frame fails.
     let (_t, dir) = fresh_capture();
     let path = dir.join("masks/cam1/000002.png");
-    let bytes = std::fs::read(&path).unwrap();
-    std::fs::write(&path, &bytes[..bytes.len() / 2]).unwrap();
+    let mut bytes = std::fs::read(&path).unwrap();
+    let middle = bytes.len() / 2;
+    bytes[middle..middle + 64].fill(0x5a);
+    std::fs::write(&path, &bytes).unwrap();
     let c = Capture::open(&dir).unwrap();
     let msg = c.load_masks(2).unwrap_err().to_string();
     assert_mentions(&msg, &["masks/cam1/000002.png", "cannot decode"]);

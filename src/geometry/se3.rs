@@ -99,6 +99,10 @@ pub struct Pose {
     pub translation: Vector3<f64>,
 }
 
+/// Within this of orthonormal (max |RᵀR − I| entry, |det − 1|) a matrix read from a file is a
+/// rotation to rounding, and [`Pose::rotation_from_rows`] keeps it unchanged.
+const EXACT_ROTATION_TOL: f64 = 1e-13;
+
 impl Default for Pose {
     fn default() -> Self {
         Self::IDENTITY
@@ -207,8 +211,9 @@ impl Pose {
         Pose::from_euler_tuple(&t)
     }
 
-    /// Re-orthonormalise a 3x3 matrix read from a file; `None` if it is not a rotation
-    /// within `tol` (max |RᵀR − I| entry, and det ≈ +1).
+    /// Re-orthonormalise a 3x3 matrix read from a file (one already orthonormal to rounding is
+    /// kept as it is); `None` if it is not a rotation within `tol` (max |RᵀR − I| entry, and
+    /// det ≈ +1).
     pub fn rotation_from_rows(rows: &[[f64; 3]; 3], tol: f64) -> Option<Rotation3<f64>> {
         let m = Matrix3::from_fn(|i, j| rows[i][j]);
         let err = (m.transpose() * m - Matrix3::identity()).abs().max();
@@ -216,6 +221,12 @@ impl Pose {
         let is_rotation = err <= tol && (m.determinant() - 1.0).abs() <= tol * 3.0;
         if !is_rotation {
             return None;
+        }
+        // A matrix orthonormal to rounding (as every pose jawtrack writes is) is kept to the
+        // bit, so that a pose written and read back is the same pose: a resumed run goes on
+        // from exactly where the interrupted one was.
+        if err <= EXACT_ROTATION_TOL && (m.determinant() - 1.0).abs() <= EXACT_ROTATION_TOL {
+            return Some(Rotation3::from_matrix_unchecked(m));
         }
         let svd = m.svd(true, true);
         let (u, vt) = (svd.u?, svd.v_t?);
@@ -253,6 +264,22 @@ pub fn jaw_pose(world_from_upper: &Pose, world_from_lower: &Pose) -> Pose {
 mod tests {
     use super::*;
     use crate::geometry::lie_suite::{LieGroup, group_axiom_suite};
+
+    #[test]
+    fn a_rotation_read_back_from_its_rows_is_the_same_to_the_bit() {
+        let a = Pose::from_euler_tuple(&[0.3, -0.2, 0.1, 1.0, 2.0, 3.0]);
+        let b = Pose::from_euler_tuple(&[-0.05, 0.4, 0.7, 0.0, 0.0, 0.0]);
+        let p = a.compose(&b).compose(&a);
+        let read = Pose::rotation_from_rows(&p.rotation_rows(), 1e-6).unwrap();
+        assert_eq!(read.matrix(), p.rotation.matrix());
+        // Rows off by more than rounding are re-orthonormalised.
+        let mut rows = p.rotation_rows();
+        rows[0][0] += 1e-9;
+        let fixed = Pose::rotation_from_rows(&rows, 1e-6).unwrap();
+        let m = fixed.matrix();
+        assert!((m.transpose() * m - Matrix3::identity()).abs().max() < 1e-14);
+        assert_ne!(m[(0, 0)], rows[0][0]);
+    }
 
     /// Found by hostile input: any non-finite pose reaching `compose` looped for ever in
     /// nalgebra's re-orthonormalisation (bf99878).
