@@ -1,7 +1,8 @@
 //! Property tests over hostile input: every reader gets mutated copies of valid files (bytes
 //! flipped, inserted and cut; JSON values replaced by extremes) and must answer with a value or
-//! an error, never a panic, a hang or an abort. The seeds are the checked-in fixture capture
-//! (`fixtures/tiny-capture`, written by another program) and the files below.
+//! an error, never a panic, a hang or an abort. The seeds are checked in, all written by another
+//! program: the capture `fixtures/tiny-capture` and the corpus `fixtures/fuzz` (meshes in every
+//! format, a journal, a tracks.json; `make_corpus.py` there writes it).
 //!
 //! CI runs `PROPTEST_CASES` cases per target (64 by default here); run longer with e.g.
 //! `PROPTEST_CASES=100000 cargo test --release --test fuzz`.
@@ -25,6 +26,35 @@ fn config() -> ProptestConfig {
 
 fn fixture() -> PathBuf {
     Path::new(env!("CARGO_MANIFEST_DIR")).join("fixtures/tiny-capture")
+}
+
+/// A seed of the corpus.
+fn corpus(name: &str) -> Vec<u8> {
+    std::fs::read(
+        Path::new(env!("CARGO_MANIFEST_DIR"))
+            .join("fixtures/fuzz")
+            .join(name),
+    )
+    .unwrap()
+}
+
+/// The mesh seeds: the fixture capture's ASCII STL and the corpus's.
+const MESH_SEEDS: [(&str, &str); 5] = [
+    ("stl", "tiny-capture"),
+    ("stl", "mesh.stl"),
+    ("obj", "mesh.obj"),
+    ("ply", "mesh-ascii.ply"),
+    ("ply", "mesh-binary.ply"),
+];
+
+fn mesh_seed(k: usize) -> (&'static str, Vec<u8>) {
+    match MESH_SEEDS[k] {
+        (ext, "tiny-capture") => (
+            ext,
+            std::fs::read(fixture().join("meshes/upper.stl")).unwrap(),
+        ),
+        (ext, name) => (ext, corpus(name)),
+    }
 }
 
 fn copy_dir(from: &Path, to: &Path) {
@@ -178,9 +208,9 @@ proptest! {
     }
 
     #[test]
-    fn meshes_with_bytes_edited(format in 0..3usize, e in edits()) {
+    fn meshes_with_bytes_edited(seed in 0..MESH_SEEDS.len(), e in edits()) {
         let t = tempfile::tempdir().unwrap();
-        let (ext, seed) = mesh_seed(format, t.path());
+        let (ext, seed) = mesh_seed(seed);
         let path = t.path().join(format!("m.{ext}"));
         std::fs::write(&path, apply(&seed, &e)).unwrap();
         let _ = Mesh::load(&path, BoiSource::GroupIfPresent("boi"));
@@ -201,14 +231,8 @@ proptest! {
     fn journals_and_tracks_with_bytes_edited(e in edits(), journal in any::<bool>()) {
         let t = tempfile::tempdir().unwrap();
         let out = t.path().join("tracks.json");
-        let record = r#"{"frame": 0, "upper": {"rotation": [[1,0,0],[0,1,0],[0,0,1]], "translation": [0,0,0]}, "lower": {"rotation": [[1,0,0],[0,1,0],[0,0,1]], "translation": [0,-10,0]}, "status": "ok"}"#;
-        let seed = if journal {
-            format!("{{\"fingerprint\": \"f\"}}\n{record}\n{}\n", record.replace("\"frame\": 0", "\"frame\": 1"))
-        } else {
-            format!("{{\"format\": \"jawtrack-tracks/1\", \"fingerprint\": \"f\", \"frames\": [{record}]}}")
-        };
         let name = if journal { "tracks.json.journal" } else { "tracks.json" };
-        std::fs::write(t.path().join(name), apply(seed.as_bytes(), &e)).unwrap();
+        std::fs::write(t.path().join(name), apply(&corpus(name), &e)).unwrap();
         let _ = jawtrack::track::output::TracksWriter::open(&out, true, false, 0..3, "f");
     }
 
@@ -230,31 +254,24 @@ proptest! {
     }
 }
 
-/// A small valid mesh in each format: the fixture's STL, and OBJ and PLY written from it.
-fn mesh_seed(format: usize, dir: &Path) -> (&'static str, Vec<u8>) {
-    let stl = fixture().join("meshes/upper.stl");
-    match format {
-        0 => ("stl", std::fs::read(&stl).unwrap()),
-        1 => {
-            let mesh = Mesh::load(&stl, BoiSource::None).unwrap();
-            let path = dir.join("seed.obj");
-            jawtrack::capture::mesh::write_obj(&mesh, &path).unwrap();
-            ("obj", std::fs::read(&path).unwrap())
-        }
-        _ => {
-            let mesh = Mesh::load(&stl, BoiSource::None).unwrap();
-            let mut text = format!(
-                "ply\nformat ascii 1.0\nelement vertex {}\nproperty float x\nproperty float y\nproperty float z\nelement face {}\nproperty list uchar int vertex_indices\nend_header\n",
-                mesh.positions.len(),
-                mesh.triangles.len()
-            );
-            for p in &mesh.positions {
-                text += &format!("{} {} {}\n", p[0], p[1], p[2]);
-            }
-            for t in &mesh.triangles {
-                text += &format!("3 {} {} {}\n", t[0], t[1], t[2]);
-            }
-            ("ply", text.into_bytes())
-        }
+/// Fuzzing starts from valid inputs: every seed reads as it is.
+#[test]
+fn every_seed_of_the_corpus_reads() {
+    for k in 0..MESH_SEEDS.len() {
+        let t = tempfile::tempdir().unwrap();
+        let (ext, seed) = mesh_seed(k);
+        let path = t.path().join(format!("m.{ext}"));
+        std::fs::write(&path, seed).unwrap();
+        let mesh = Mesh::load(&path, BoiSource::GroupIfPresent("boi"))
+            .unwrap_or_else(|e| panic!("{:?}: {e}", MESH_SEEDS[k]));
+        assert!(mesh.triangles.len() >= 8, "{:?}", MESH_SEEDS[k]);
+    }
+    for name in ["tracks.json.journal", "tracks.json"] {
+        let t = tempfile::tempdir().unwrap();
+        std::fs::write(t.path().join(name), corpus(name)).unwrap();
+        let out = t.path().join("tracks.json");
+        let (_, records) =
+            jawtrack::track::output::TracksWriter::open(&out, true, false, 0..3, "f").unwrap();
+        assert_eq!(records.len(), 3, "{name}");
     }
 }
