@@ -257,14 +257,14 @@ proptest! {
 /// Fuzzing starts from valid inputs: every seed reads as it is.
 #[test]
 fn every_seed_of_the_corpus_reads() {
-    for k in 0..MESH_SEEDS.len() {
+    for (k, which) in MESH_SEEDS.iter().enumerate() {
         let t = tempfile::tempdir().unwrap();
         let (ext, seed) = mesh_seed(k);
         let path = t.path().join(format!("m.{ext}"));
         std::fs::write(&path, seed).unwrap();
         let mesh = Mesh::load(&path, BoiSource::GroupIfPresent("boi"))
-            .unwrap_or_else(|e| panic!("{:?}: {e}", MESH_SEEDS[k]));
-        assert!(mesh.triangles.len() >= 8, "{:?}", MESH_SEEDS[k]);
+            .unwrap_or_else(|e| panic!("{which:?}: {e}"));
+        assert!(mesh.triangles.len() >= 8, "{which:?}");
     }
     for name in ["tracks.json.journal", "tracks.json"] {
         let t = tempfile::tempdir().unwrap();
