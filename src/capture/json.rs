@@ -7,6 +7,7 @@ use std::path::Path;
 use nalgebra::Vector3;
 use serde::{Deserialize, Serialize, de::DeserializeOwned};
 
+use super::arch::ArchPoses;
 use crate::error::{Error, Result, Shown};
 use crate::geometry::Pose;
 
@@ -186,6 +187,19 @@ impl FrameRecordJson {
     /// The frame's status; a record that does not give one (ground truth) is `ok`.
     pub fn status(&self) -> Status {
         self.status.unwrap_or(Status::Ok)
+    }
+
+    /// The record's poses, checked as a pose file's are (errors name `path`, the file it was
+    /// read from).
+    pub fn poses(&self, path: &Path) -> Result<ArchPoses> {
+        Ok(ArchPoses {
+            upper: self
+                .upper
+                .to_pose(path, &format!("frame {}.upper", self.frame))?,
+            lower: self
+                .lower
+                .to_pose(path, &format!("frame {}.lower", self.frame))?,
+        })
     }
 }
 

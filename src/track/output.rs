@@ -10,9 +10,9 @@ use std::time::{Duration, Instant};
 
 use serde_json::json;
 
-use super::sequence::{FrameResult, Status};
+use super::sequence::FrameResult;
 use crate::capture::json::{FrameRecordJson, PoseJson, TRACKS_FORMAT, TracksJson};
-use crate::capture::{ArchPoses, check_replaceable, write_json_atomic};
+use crate::capture::{check_replaceable, write_json_atomic};
 use crate::error::{Error, Result};
 
 const REWRITE_EVERY: Duration = Duration::from_secs(1);
@@ -261,7 +261,7 @@ pub fn check_records(
             ));
         }
         previous = Some(r.frame);
-        record_poses(path, r).map_err(|e| match e {
+        r.poses(path).map_err(|e| match e {
             Error::Invalid { problem, field, .. } => {
                 Error::invalid(path, format!("{}: {field}", at(i)), problem)
             }
@@ -269,18 +269,6 @@ pub fn check_records(
         })?;
     }
     Ok(())
-}
-
-/// Poses and status of a written record.
-pub fn record_poses(path: &Path, r: &FrameRecordJson) -> Result<(ArchPoses, Status)> {
-    let status = r.status();
-    Ok((
-        ArchPoses {
-            upper: r.upper.to_pose(path, &format!("frame {}.upper", r.frame))?,
-            lower: r.lower.to_pose(path, &format!("frame {}.lower", r.frame))?,
-        },
-        status,
-    ))
 }
 
 #[cfg(test)]

@@ -7,7 +7,7 @@ use std::ops::Range;
 use std::path::{Path, PathBuf};
 use std::time::Instant;
 
-use super::output::{TracksWriter, record_poses};
+use super::output::TracksWriter;
 use super::overlay;
 use super::score::{ScoreReport, score};
 use super::sequence::{FrameResult, Status, TrackSettings, track_frames};
@@ -236,7 +236,7 @@ pub fn score_records(
 ) -> Result<Option<ScoreReport>> {
     let tracked: Vec<(FrameRecordJson, ArchPoses)> = records
         .iter()
-        .map(|r| Ok((r.clone(), record_poses(path, r)?.0)))
+        .map(|r| Ok((r.clone(), r.poses(path)?)))
         .collect::<Result<_>>()?;
     Ok(score(capture, &tracked))
 }

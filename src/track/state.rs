@@ -7,7 +7,6 @@
 use std::collections::VecDeque;
 use std::path::Path;
 
-use super::output::record_poses;
 use crate::capture::ArchPoses;
 use crate::capture::json::{FrameRecordJson, PoseJson, Status};
 use crate::error::{Error, Result};
@@ -82,7 +81,7 @@ impl TrackState {
     ) -> Result<TrackState> {
         let mut state = TrackState::new(start);
         for r in records {
-            let (poses, status) = record_poses(path, r)?;
+            let (poses, status) = (r.poses(path)?, r.status());
             let worst = match status {
                 Status::Ok => worst_area_error(path, r)?,
                 _ => f64::NAN,

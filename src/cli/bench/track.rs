@@ -219,7 +219,7 @@ pub fn track(a: TrackArgs) -> anyhow::Result<()> {
             let tracked: std::collections::HashMap<u32, ArchPoses> = summary
                 .records
                 .iter()
-                .map(|r| Ok((r.frame, jawtrack::track::output::record_poses(&out, r)?.0)))
+                .map(|r| Ok((r.frame, r.poses(&out)?)))
                 .collect::<anyhow::Result<_>>()?;
             for (frame, err) in &report.per_frame {
                 let truth = capture.gt_poses(*frame).context("ground truth")?;
