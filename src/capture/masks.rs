@@ -237,7 +237,6 @@ pub fn decode_mask(path: &Path, mode: MaskMode, mouth: Option<u8>) -> Result<Lab
     })
 }
 
-/// List a camera's mask files and check that they share one size (headers only).
 /// What a camera's mask folder holds: the masks' common size and the frames present.
 pub(super) type MaskScan = (Option<(u32, u32)>, BTreeSet<u32>);
 
@@ -259,7 +258,8 @@ pub(super) fn reduced_size((w, h): (u32, u32), k: u32, cam_dir: &Path) -> Result
     Ok((w / k, h / k))
 }
 
-/// `root`: the capture folder, which the mask files may not link out of (`None`: they may).
+/// List a camera's mask files and check that they share one size (headers only). `root`: the
+/// capture folder, which the mask files may not link out of (`None`: they may).
 pub(super) fn scan_masks(cam_dir: &Path, mode: MaskMode, root: Option<&Path>) -> Result<MaskScan> {
     let mut frames = BTreeSet::new();
     let entries = match std::fs::read_dir(cam_dir) {
