@@ -12,6 +12,7 @@ pub mod error;
 pub mod geometry;
 pub mod rig;
 pub mod settings;
+pub mod skin;
 pub mod stats;
 pub mod synth;
 pub mod track;

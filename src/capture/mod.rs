@@ -7,6 +7,7 @@ pub mod json;
 pub mod masks;
 pub mod mesh;
 mod paths;
+pub use paths::{listed_file_inside, path_inside};
 pub mod read;
 mod write;
 

@@ -11,6 +11,7 @@ mod report;
 mod rig;
 mod run;
 mod score;
+mod skin;
 mod synth;
 mod track;
 mod validate;
@@ -47,6 +48,9 @@ enum Command {
     /// The empirical jaw rig on Posselt's envelope (Zoss et al. 2018).
     #[command(subcommand)]
     Envelope(envelope::Command),
+    /// The jaw from the skin (Zoss et al. 2019): learn, retarget, predict, evaluate.
+    #[command(subcommand)]
+    Skin(skin::Command),
     /// Mesh tools.
     #[command(subcommand)]
     Mesh(mesh::Command),
@@ -66,6 +70,7 @@ pub fn main() -> ExitCode {
         Command::Energy(a) => energy::run(a),
         Command::Rig(c) => rig::run(c),
         Command::Envelope(c) => envelope::run(c),
+        Command::Skin(c) => skin::run(c),
         Command::Mesh(c) => mesh::run(c),
         Command::Bench(c) => bench::run(c),
     };

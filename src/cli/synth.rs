@@ -6,11 +6,22 @@ use super::args::{CameraRigArgs, JointArg, MaskKindArg, PresetArg};
 
 #[derive(clap::Args)]
 pub struct Args {
-    /// Folder to write the capture to (must not exist, unless --force).
-    pub out: PathBuf,
-    /// Number of frames (24 per second).
-    #[arg(long, default_value_t = 48, value_parser = clap::value_parser!(u32).range(1..=100_000))]
-    pub frames: u32,
+    /// Folder to write the capture to (must not exist, unless --force); with --face, the
+    /// set of subjects (default `faces`).
+    pub out: Option<PathBuf>,
+    /// Write face sequences (the jaw from the skin) instead of a capture: a set of subjects,
+    /// each a folder in the face-sequence format.
+    #[arg(long)]
+    pub face: bool,
+    /// With --face: how many subjects.
+    #[arg(long, default_value_t = 4, value_parser = clap::value_parser!(u32).range(1..=64), requires = "face")]
+    pub subjects: u32,
+    /// With --face: the face tracker's noise per vertex and coordinate (mm).
+    #[arg(long, default_value_t = 0.1, requires = "face")]
+    pub noise_mm: f64,
+    /// Number of frames (24 per second); default 48, with --face 600.
+    #[arg(long, value_parser = clap::value_parser!(u32).range(1..=100_000))]
+    pub frames: Option<u32>,
     /// Random seed: the same seed writes the same capture.
     #[arg(long, default_value_t = 0)]
     pub seed: u64,
@@ -54,8 +65,14 @@ pub struct Args {
 }
 
 pub fn run(a: Args) -> anyhow::Result<()> {
+    if a.face {
+        return faces(a);
+    }
+    let Some(out) = a.out.clone() else {
+        anyhow::bail!("synth: give the folder to write the capture to (OUT), or --face for face sequences");
+    };
     let opts = SynthOptions {
-        frames: a.frames,
+        frames: a.frames.unwrap_or(48),
         seed: a.seed,
         preset: a.preset.into(),
         masks: a.masks.into(),
@@ -69,11 +86,40 @@ pub fn run(a: Args) -> anyhow::Result<()> {
         mouth: !a.no_mouth,
         persistent_noise: a.persistent_noise,
     };
-    let report = super::run::synthesise(&a.out, &opts)?;
+    let report = super::run::synthesise(&out, &opts)?;
     if a.json {
         println!("{}", serde_json::to_string_pretty(&report)?);
     } else {
-        super::report::synth(&a.out, &report);
+        super::report::synth(&out, &report);
     }
+    Ok(())
+}
+
+fn faces(a: Args) -> anyhow::Result<()> {
+    use anyhow::Context;
+    let out = a.out.clone().unwrap_or_else(|| PathBuf::from("faces"));
+    let opts = jawtrack::synth::face::FaceSynthOptions {
+        subjects: a.subjects,
+        frames: a.frames.unwrap_or(600),
+        seed: a.seed,
+        noise_mm: a.noise_mm,
+        force: a.force,
+    };
+    let bar = super::progress_bar(opts.subjects as u64 * opts.frames as u64, "synth --face");
+    let report = jawtrack::synth::face::generate_faces(&out, &opts, &|| bar.inc(1))
+        .with_context(|| format!("writing face sequences to {}", out.display()))?;
+    bar.finish_and_clear();
+    if a.json {
+        println!("{}", serde_json::to_string_pretty(&report)?);
+        return Ok(());
+    }
+    println!("wrote {} subjects to {} in {:.1} s", report.subjects.len(), out.display(), report.seconds);
+    for s in &report.subjects {
+        println!(
+            "  {}: {} frames, {} skin vertices, chin tissue {:.1} mm, sliding {:.2}, opening up to {:.1} mm, skin moves up to {:.1} mm",
+            s.name, s.frames, s.skin_vertices, s.chin_tissue_mm, s.sliding, s.max_opening_mm, s.max_skin_mm
+        );
+    }
+    println!("evaluate them with: jawtrack skin eval {}", out.display());
     Ok(())
 }

@@ -4,6 +4,7 @@
 //! capture format exactly, deterministically per seed.
 
 pub mod exercise;
+pub mod face;
 pub mod mandible;
 pub mod masks;
 mod write;
@@ -482,15 +483,26 @@ pub fn generate(
     if opts.frames == 0 {
         return Err(Error::invalid(out, "--frames", "must be at least 1"));
     }
-    if out.exists() && !opts.force {
+    check_out(out, opts.force)?;
+    let session = Session::new(opts)?;
+    write_staged(out, |dir| write_capture(dir, &session, opts, progress, started))
+}
+
+/// Refuse an existing `out` unless `force`.
+pub(crate) fn check_out(out: &Path, force: bool) -> Result<()> {
+    if out.exists() && !force {
         return Err(Error::invalid(
             out,
             "OUT",
             "already exists; choose another folder or pass --force to replace it",
         ));
     }
-    let session = Session::new(opts)?;
-    // Build beside the target, then move into place: a crash never leaves half a capture.
+    Ok(())
+}
+
+/// Build a folder beside `out` with `write`, then move it into place: a crash never leaves
+/// half a capture, and an existing `out` is replaced only once the new one is whole.
+pub(crate) fn write_staged<T>(out: &Path, write: impl FnOnce(&Path) -> Result<T>) -> Result<T> {
     let parent = out
         .parent()
         .filter(|p| !p.as_os_str().is_empty())
@@ -506,8 +518,7 @@ pub fn generate(
             path: parent.to_path_buf(),
             error,
         })?;
-    let dir = staging.path();
-    let report = write_capture(dir, &session, opts, progress, started)?;
+    let report = write(staging.path())?;
     if out.exists() {
         std::fs::remove_dir_all(out).map_err(|error| Error::Write {
             path: out.to_path_buf(),

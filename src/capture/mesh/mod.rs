@@ -157,6 +157,39 @@ impl Mesh {
         Ok(mesh)
     }
 
+    /// The vertices alone of an OBJ or PLY file (faces, if any, are not needed): a frame of a
+    /// face sequence, whose topology is its neutral mesh's.
+    pub fn load_vertices(path: &Path) -> Result<Vec<[f32; 3]>> {
+        let ext = path
+            .extension()
+            .and_then(|e| e.to_str())
+            .map(str::to_ascii_lowercase)
+            .unwrap_or_default();
+        let raw = match ext.as_str() {
+            "obj" => obj::read_obj(path)?,
+            "ply" => ply::read_ply(path)?,
+            _ => {
+                return Err(Error::invalid(
+                    path,
+                    "extension",
+                    format!("unsupported mesh format `.{ext}` (expected .obj or .ply)"),
+                ));
+            }
+        };
+        if let Some(i) = raw
+            .positions
+            .iter()
+            .position(|p| p.iter().any(|c| !c.is_finite()))
+        {
+            return Err(Error::invalid(
+                path,
+                format!("vertex {} (counting from 1)", i + 1),
+                format!("has a non-finite coordinate {:?}", raw.positions[i]),
+            ));
+        }
+        Ok(raw.positions)
+    }
+
     /// Check the invariants every consumer relies on.
     pub fn validate(&self, path: &Path) -> Result<()> {
         if self.triangles.is_empty() {

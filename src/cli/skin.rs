@@ -1,0 +1,242 @@
+//! `jawtrack skin`: the jaw from the skin (Zoss et al. 2019) on face sequences.
+
+use std::path::{Path, PathBuf};
+use std::time::Instant;
+
+use anyhow::Context;
+use jawtrack::capture::json::PoseJson;
+use jawtrack::capture::write_json_atomic;
+use jawtrack::skin::eval::{Evaluation, evaluate};
+use jawtrack::skin::format::{FaceSequence, JAW_FORMAT, JawJson, JawPoseJson, subject_dirs};
+use jawtrack::skin::model::{SkinModel, SkinSettings, learn_multi, learn_single, retarget_to};
+use jawtrack::skin::subject::{Subject, vertex_error};
+
+#[derive(clap::Subcommand)]
+pub enum Command {
+    /// Learn a model from face sequences with jaw poses: one (a single-subject mapping) or
+    /// several (the multi-subject mapping, the first as primary).
+    Learn {
+        /// Face sequence folders (each with face.json).
+        #[arg(required = true)]
+        faces: Vec<PathBuf>,
+        /// The model file to write.
+        #[arg(short, long)]
+        out: PathBuf,
+        /// Learn from the first N frames of a single subject only.
+        #[arg(long, value_parser = clap::value_parser!(u32).range(8..))]
+        first: Option<u32>,
+        #[command(flatten)]
+        settings: SettingsArg,
+    },
+    /// Carry a model to a new subject from its five calibration poses (face.json
+    /// `calibration`, their poses in jaw.json).
+    Retarget {
+        model: PathBuf,
+        face: PathBuf,
+        #[arg(short, long)]
+        out: PathBuf,
+        #[command(flatten)]
+        settings: SettingsArg,
+    },
+    /// Predict the jaw in every frame of a face sequence; writes a jawtrack-jaw/1 file.
+    Predict {
+        model: PathBuf,
+        face: PathBuf,
+        #[arg(short, long)]
+        out: PathBuf,
+    },
+    /// Leave-one-subject-out evaluation of a set of subjects (DIR/<name>/face.json), against
+    /// the Procrustes baseline; a Table-1-style comparison.
+    Eval {
+        dir: PathBuf,
+        /// Print the figures as JSON.
+        #[arg(long)]
+        json: bool,
+        /// Write a plot of the error over frames (SVG), one panel per subject.
+        #[arg(long)]
+        plot: Option<PathBuf>,
+        #[command(flatten)]
+        settings: SettingsArg,
+    },
+}
+
+#[derive(clap::Args)]
+pub struct SettingsArg {
+    /// A JSON file of settings (features, regress, retarget; see README).
+    #[arg(long)]
+    settings: Option<PathBuf>,
+}
+
+impl SettingsArg {
+    fn read(&self) -> anyhow::Result<SkinSettings> {
+        Ok(match &self.settings {
+            None => SkinSettings::default(),
+            Some(p) => jawtrack::capture::json::read_json(p, "skin settings")?,
+        })
+    }
+}
+
+fn load(dir: &Path) -> anyhow::Result<Subject> {
+    let seq = FaceSequence::open(dir).with_context(|| format!("invalid face sequence {}", dir.display()))?;
+    for f in &seq.unknown_fields {
+        eprintln!("note: {}: field `{f}` is not in the format and was ignored", dir.join("face.json").display());
+    }
+    let name = dir
+        .file_name()
+        .and_then(|n| n.to_str())
+        .unwrap_or("face")
+        .to_string();
+    let bar = super::progress_bar(seq.count as u64, &format!("reading {name}"));
+    let s = Subject::load(&seq, &name, &|| bar.inc(1))
+        .with_context(|| format!("invalid face sequence {}", dir.display()))?;
+    bar.finish_and_clear();
+    Ok(s)
+}
+
+pub fn run(c: Command) -> anyhow::Result<()> {
+    match c {
+        Command::Learn { faces, out, first, settings } => {
+            let settings = settings.read()?;
+            jawtrack::capture::check_replaceable(&out)?;
+            let subjects = faces.iter().map(|d| load(d)).collect::<anyhow::Result<Vec<_>>>()?;
+            let clock = Instant::now();
+            let model = if subjects.len() == 1 {
+                let s = &subjects[0];
+                let n = first.map_or(s.frames.len(), |f| (f as usize).min(s.frames.len()));
+                let rows: Vec<usize> = (0..n).collect();
+                learn_single(s, None, &rows, &settings)?
+            } else {
+                let refs: Vec<&Subject> = subjects.iter().collect();
+                learn_multi(&refs, None, &settings)?.0
+            };
+            write_json_atomic(&out, &model)?;
+            let r = &model.regressor;
+            println!(
+                "learned from {} ({} frames used, {} skin points, {} components, {} support vectors) in {:.1} s",
+                model.trained_on.join(", "),
+                r.samples,
+                model.skin_points.len(),
+                r.components,
+                r.support.len(),
+                clock.elapsed().as_secs_f64()
+            );
+            println!(
+                "chosen on held-out frames: kernel width {} x median, C {}: bone points {:.3} mm there",
+                r.width_multiple, r.penalty, r.held_out_mm
+            );
+            println!("wrote {}", out.display());
+        }
+        Command::Retarget { model, face, out, settings } => {
+            let settings = settings.read()?;
+            jawtrack::capture::check_replaceable(&out)?;
+            let m = SkinModel::read(&model)?;
+            let target = load(&face)?;
+            m.check_topology(&target, &face.join("face.json"))?;
+            let (r, report) = retarget_to(&m, &target, &settings.retarget)?;
+            write_json_atomic(&out, &r)?;
+            println!(
+                "retargeted to {} from its calibration poses: Σ|Φ − B|² {:.3} → {:.3} mm² in {} steps",
+                target.name, report.cost_before, report.cost_after, report.iterations
+            );
+            println!("wrote {}", out.display());
+        }
+        Command::Predict { model, face, out } => {
+            jawtrack::capture::check_replaceable(&out)?;
+            let m = SkinModel::read(&model)?;
+            let s = load(&face)?;
+            m.check_topology(&s, &face.join("face.json"))?;
+            let clock = Instant::now();
+            let poses: Vec<_> = (0..s.frames.len())
+                .map(|i| m.predict(&s.skin_features(&m.skin_points, i)))
+                .collect();
+            let per_frame = clock.elapsed().as_secs_f64() * 1e3 / poses.len().max(1) as f64;
+            let jaw = JawJson {
+                format: JAW_FORMAT.into(),
+                poses: s
+                    .frames
+                    .iter()
+                    .zip(&poses)
+                    .map(|(&frame, p)| JawPoseJson { frame, pose: PoseJson::from(p) })
+                    .collect(),
+            };
+            write_json_atomic(&out, &jaw)?;
+            println!("predicted {} frames, {per_frame:.3} ms a frame (reading excluded)", poses.len());
+            let errors: Vec<f64> = s
+                .jaw
+                .iter()
+                .zip(&poses)
+                .filter_map(|(t, p)| t.map(|t| vertex_error(&s.mandible, p, &t)))
+                .collect();
+            if !errors.is_empty() {
+                let st = jawtrack::stats::Stats::of(&errors);
+                println!(
+                    "against the jaw poses in the sequence ({} frames): mean {:.3}, median {:.3}, p95 {:.3} mm",
+                    errors.len(), st.mean, st.median, st.p95
+                );
+            }
+            println!("wrote {}", out.display());
+        }
+        Command::Eval { dir, json, plot, settings } => {
+            let settings = settings.read()?;
+            if let Some(p) = &plot {
+                jawtrack::capture::check_replaceable(p)?;
+            }
+            let dirs = subject_dirs(&dir)?;
+            let subjects = dirs.iter().map(|(_, d)| load(d)).collect::<anyhow::Result<Vec<_>>>()?;
+            let e = evaluate(&subjects, &settings, &|m| eprintln!("{m}"))?;
+            if let Some(p) = &plot {
+                jawtrack::skin::plot::error_over_frames(p, &e)?;
+            }
+            if json {
+                println!("{}", serde_json::to_string_pretty(&summary(&e))?);
+            } else {
+                print_table(&e);
+            }
+        }
+    }
+    Ok(())
+}
+
+/// The figures without the per-frame series.
+fn summary(e: &Evaluation) -> serde_json::Value {
+    let mut v = serde_json::to_value(e).expect("plain data");
+    if let Some(list) = v.get_mut("subjects").and_then(|s| s.as_array_mut()) {
+        for s in list {
+            if let Some(o) = s.as_object_mut() {
+                o.remove("series");
+            }
+        }
+    }
+    v
+}
+
+fn print_table(e: &Evaluation) {
+    println!("mean error over the mandible's vertices (mm); bone points in brackets");
+    println!(
+        "{:<10} {:>16} {:>18} {:>18} {:>16} {:>14}",
+        "subject", "single (own)", "retargeted", "multi-subject", "baseline", "uncalibrated"
+    );
+    for s in &e.subjects {
+        println!(
+            "{:<10} {:>7.3} ({:>6.3}) {:>9.3} ({:>6.3}) {:>9.3} ({:>6.3}) {:>7.3} ({:>6.3}) {:>14.3}",
+            s.name,
+            s.single_mm,
+            s.single_bone_mm,
+            s.retargeted_mm,
+            s.retargeted_bone_mm,
+            s.multi_subject_mm,
+            s.multi_subject_bone_mm,
+            s.baseline_mm,
+            s.baseline_bone_mm,
+            s.uncalibrated_mm
+        );
+    }
+    println!(
+        "single: learned on the first {:.0}% of each subject's frames, tested on the rest; the others: leave-one-subject-out, every frame",
+        jawtrack::skin::eval::SINGLE_TRAIN_SHARE * 100.0
+    );
+    println!(
+        "learning {:.1} s a subject ({} frames); prediction {:.3} ms a frame; {:.0} s in all",
+        e.learn_s, e.learn_frames, e.predict_ms, e.seconds
+    );
+}

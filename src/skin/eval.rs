@@ -1,0 +1,206 @@
+//! Scoring the jaw from the skin on subjects with ground truth, as the paper's Section 7 does:
+//! one subject trained on its first frames and tested on its later ones (Fig. 7), and
+//! leave-one-subject-out retargeting from the calibration poses, from every single subject
+//! and from the multi-subject mapping, against the Procrustes baseline (Table 1, Fig. 8).
+
+use std::time::Instant;
+
+use serde::Serialize;
+
+use super::baseline::baseline_jaw;
+use super::features::SkinPoint;
+use super::model::{SkinModel, SkinSettings, learn_multi, learn_single, retarget_to, skin_points};
+use super::subject::{Subject, bone_point_error, vertex_error};
+use crate::error::{Error, Result};
+use crate::geometry::Pose;
+
+/// The share of a subject's frames (the first ones) its single-subject mapping learns from.
+pub const SINGLE_TRAIN_SHARE: f64 = 0.6;
+
+#[derive(Debug, Clone, Serialize)]
+pub struct Evaluation {
+    pub subjects: Vec<SubjectScore>,
+    /// Mean time to predict one frame's jaw (features, Φ, rigid fit), ms.
+    pub predict_ms: f64,
+    /// Mean time to learn one single-subject mapping, s, and the frames it learned from.
+    pub learn_s: f64,
+    pub learn_frames: usize,
+    pub seconds: f64,
+}
+
+/// Errors in mm: mean over the mandible's vertices (and over the five bone points), averaged
+/// over frames.
+#[derive(Debug, Clone, Serialize)]
+pub struct SubjectScore {
+    pub name: String,
+    pub frames: usize,
+    /// Trained on the subject's own first frames, tested on the rest (`single_frames`).
+    pub single_mm: f64,
+    pub single_bone_mm: f64,
+    pub single_frames: usize,
+    /// The baseline on the same test frames.
+    pub single_baseline_mm: f64,
+    /// The best single other subject's mapping, retargeted; every frame.
+    pub retargeted_mm: f64,
+    pub retargeted_bone_mm: f64,
+    pub retargeted_from: String,
+    pub retargeted_each_mm: Vec<(String, f64)>,
+    /// The best single other subject's mapping without retargeting.
+    pub uncalibrated_mm: f64,
+    /// The multi-subject mapping of all the others, retargeted; every frame.
+    pub multi_subject_mm: f64,
+    pub multi_subject_bone_mm: f64,
+    pub baseline_mm: f64,
+    pub baseline_bone_mm: f64,
+    /// Per frame (every frame), for the plot: multi-subject, baseline; and the single-subject
+    /// error on its test frames (NaN before them).
+    pub series: Series,
+}
+
+#[derive(Debug, Clone, Default, Serialize)]
+pub struct Series {
+    pub frames: Vec<u32>,
+    pub single: Vec<f64>,
+    pub multi_subject: Vec<f64>,
+    pub baseline: Vec<f64>,
+}
+
+struct Scored {
+    mm: Vec<f64>,
+    bone: Vec<f64>,
+}
+
+fn score(s: &Subject, rows: &[usize], predict: &dyn Fn(usize) -> Pose) -> Scored {
+    let mut out = Scored { mm: Vec::new(), bone: Vec::new() };
+    for &i in rows {
+        let Some(truth) = s.jaw[i] else { continue };
+        let p = predict(i);
+        out.mm.push(vertex_error(&s.mandible, &p, &truth));
+        out.bone.push(bone_point_error(&s.bone, &p, &truth));
+    }
+    out
+}
+
+fn mean(v: &[f64]) -> f64 {
+    v.iter().sum::<f64>() / v.len().max(1) as f64
+}
+
+/// Evaluate a set (at least two subjects, all with jaw poses and calibration frames).
+pub fn evaluate(
+    subjects: &[Subject],
+    settings: &SkinSettings,
+    progress: &dyn Fn(&str),
+) -> Result<Evaluation> {
+    let started = Instant::now();
+    if subjects.len() < 2 {
+        return Err(Error::invalid(
+            std::path::Path::new("."),
+            "subjects",
+            format!(
+                "{} subject(s); leave-one-subject-out needs at least two",
+                subjects.len()
+            ),
+        ));
+    }
+    // Skin points are chosen on each fold's primary (its first training subject), so that the
+    // subject left out has no say; two sets cover every fold.
+    let point_sets: Vec<Vec<SkinPoint>> = vec![
+        skin_points(&subjects[0], settings)?,
+        skin_points(&subjects[1], settings)?,
+    ];
+    let set_for = |held: usize| if held == 0 { 1 } else { 0 };
+    // Every subject's own mapping on all its frames, per point set, for single-source
+    // retargeting.
+    let mut sources: Vec<Vec<Option<SkinModel>>> = vec![vec![None; subjects.len()]; 2];
+    let mut learn_times = Vec::new();
+    let mut learn_frames = 0;
+    let mut predict_time = 0.0;
+    let mut predicted = 0usize;
+    let mut scores = Vec::new();
+    for (t, target) in subjects.iter().enumerate() {
+        progress(&format!("subject {} ({} of {})", target.name, t + 1, subjects.len()));
+        let ps = set_for(t);
+        let points = &point_sets[ps];
+        let (rest, _) = target.rest()?;
+        let n = target.frames.len();
+        let all: Vec<usize> = (0..n).collect();
+        // Single subject: first frames learn, the rest test.
+        let cut = ((n as f64 * SINGLE_TRAIN_SHARE) as usize).clamp(1, n - 1);
+        let clock = Instant::now();
+        let own = learn_single(target, Some(points.clone()), &all[..cut], settings)?;
+        learn_times.push(clock.elapsed().as_secs_f64());
+        learn_frames = learn_frames.max(cut);
+        let features: Vec<Vec<f64>> = all.iter().map(|&i| target.skin_features(points, i)).collect();
+        let clock = Instant::now();
+        let single = score(target, &all[cut..], &|i| own.predict(&target.skin_features(points, i)));
+        predict_time += clock.elapsed().as_secs_f64();
+        predicted += n - cut;
+        let base = |i: usize| {
+            baseline_jaw(points, &target.neutral.triangles, &target.neutral.positions, &target.skin[i], &rest)
+        };
+        let single_base = score(target, &all[cut..], &base);
+        // Single sources, retargeted.
+        let mut each = Vec::new();
+        let mut best: Option<(f64, f64, String)> = None;
+        let mut uncalibrated = f64::INFINITY;
+        for (k, src) in subjects.iter().enumerate() {
+            if k == t {
+                continue;
+            }
+            if sources[ps][k].is_none() {
+                let rows: Vec<usize> = (0..src.frames.len()).collect();
+                sources[ps][k] = Some(learn_single(src, Some(points.clone()), &rows, settings)?);
+            }
+            let m = sources[ps][k].as_ref().expect("learned above");
+            let (plain, _) = retarget_to(m, target, &super::retarget::RetargetSettings { iterations: 0, ..settings.retarget })?;
+            let raw = score(target, &all, &|i| plain.predict(&features[i]));
+            uncalibrated = uncalibrated.min(mean(&raw.mm));
+            let (r, _) = retarget_to(m, target, &settings.retarget)?;
+            let sc = score(target, &all, &|i| r.predict(&features[i]));
+            let e = mean(&sc.mm);
+            each.push((src.name.clone(), e));
+            if best.as_ref().is_none_or(|b| e < b.0) {
+                best = Some((e, mean(&sc.bone), src.name.clone()));
+            }
+        }
+        let (retargeted_mm, retargeted_bone_mm, retargeted_from) = best.expect("two subjects or more");
+        // Multi-subject from all the others.
+        let others: Vec<&Subject> = subjects.iter().enumerate().filter(|(k, _)| *k != t).map(|(_, s)| s).collect();
+        let (multi, _) = learn_multi(&others, Some(points.clone()), settings)?;
+        let (multi, _) = retarget_to(&multi, target, &settings.retarget)?;
+        let multi_sc = score(target, &all, &|i| multi.predict(&features[i]));
+        let base_sc = score(target, &all, &base);
+        let mut series = Series {
+            frames: target.frames.clone(),
+            single: vec![f64::NAN; cut],
+            multi_subject: multi_sc.mm.clone(),
+            baseline: base_sc.mm.clone(),
+        };
+        series.single.extend(single.mm.iter().copied());
+        scores.push(SubjectScore {
+            name: target.name.clone(),
+            frames: n,
+            single_mm: mean(&single.mm),
+            single_bone_mm: mean(&single.bone),
+            single_frames: single.mm.len(),
+            single_baseline_mm: mean(&single_base.mm),
+            retargeted_mm,
+            retargeted_bone_mm,
+            retargeted_from,
+            retargeted_each_mm: each,
+            uncalibrated_mm: uncalibrated,
+            multi_subject_mm: mean(&multi_sc.mm),
+            multi_subject_bone_mm: mean(&multi_sc.bone),
+            baseline_mm: mean(&base_sc.mm),
+            baseline_bone_mm: mean(&base_sc.bone),
+            series,
+        });
+    }
+    Ok(Evaluation {
+        subjects: scores,
+        predict_ms: predict_time * 1e3 / predicted.max(1) as f64,
+        learn_s: mean(&learn_times),
+        learn_frames,
+        seconds: started.elapsed().as_secs_f64(),
+    })
+}

@@ -1,0 +1,17 @@
+//! The jaw from the skin (Zoss et al. 2019, *Accurate Markerless Jaw Tracking for Facial
+//! Performance Capture*): the jaw pose predicted from a tracked face surface alone.
+//!
+//! [`format`] reads face sequences; [`features`] turns skin and jaw into the paper's features;
+//! [`regress`] learns the mapping; [`predictor`] turns a prediction into a jaw pose;
+//! [`retarget`] carries a mapping to a new subject; [`baseline`] is the paper's comparison;
+//! [`eval`] scores them all.
+
+pub mod features;
+pub mod format;
+pub mod regress;
+pub mod baseline;
+pub mod model;
+pub mod retarget;
+pub mod subject;
+pub mod eval;
+pub mod plot;

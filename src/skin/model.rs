@@ -1,0 +1,285 @@
+//! A jaw-from-skin model: which skin points it reads, the mapping Φ, and the subject it
+//! predicts for (its rest pose, bone points and, once retargeted, the per-feature transforms).
+//! Learning one from a subject (Section 5), from several (Section 6.2), and retargeting one
+//! to a new subject (Section 6.1).
+
+use nalgebra::Vector3;
+use serde::{Deserialize, Serialize};
+
+use super::features::{FeatureSettings, SkinPoint, choose_skin_points};
+use super::regress::{RegressSettings, Regressor};
+use super::retarget::{FeatureTransform, RetargetReport, RetargetSettings, align_globally, apply, retarget};
+use super::subject::{Subject, jaw_from_bone};
+use crate::capture::json::PoseJson;
+use crate::error::{Error, Result};
+use crate::geometry::Pose;
+
+pub const MODEL_FORMAT: &str = "jawtrack-skin-model/1";
+
+/// Everything learning and retargeting can be told (`--settings FILE`, JSON; absent fields
+/// keep their defaults).
+#[derive(Debug, Clone, Default, PartialEq, Serialize, Deserialize)]
+#[serde(default, deny_unknown_fields)]
+pub struct SkinSettings {
+    pub features: FeatureSettings,
+    pub regress: RegressSettings,
+    pub retarget: RetargetSettings,
+}
+
+/// The subject a model predicts for.
+#[derive(Debug, Clone, Serialize, Deserialize)]
+pub struct SubjectFit {
+    pub name: String,
+    pub rest: PoseJson,
+    pub bone_points: [[f64; 3]; 5],
+    /// Per skin feature (or one for all), applied before Φ; empty: none.
+    #[serde(default, skip_serializing_if = "Vec::is_empty")]
+    pub transforms: Vec<FeatureTransform>,
+}
+
+#[derive(Debug, Clone, Serialize, Deserialize)]
+pub struct SkinModel {
+    pub format: String,
+    /// The topology the skin points refer to.
+    pub skin_vertices: usize,
+    pub skin_triangles: usize,
+    pub skin_points: Vec<SkinPoint>,
+    pub settings: SkinSettings,
+    pub trained_on: Vec<String>,
+    pub regressor: Regressor,
+    pub subject: SubjectFit,
+}
+
+impl SubjectFit {
+    fn of(s: &Subject, rest: &Pose) -> SubjectFit {
+        SubjectFit {
+            name: s.name.clone(),
+            rest: PoseJson::from(rest),
+            bone_points: s.bone.map(|p| [p.x, p.y, p.z]),
+            transforms: Vec::new(),
+        }
+    }
+
+    fn rest_pose(&self) -> Pose {
+        // Written by this program from a checked pose; the reader checks it again.
+        self.rest
+            .to_pose(std::path::Path::new("model"), "subject.rest")
+            .unwrap_or_default()
+    }
+
+    fn bone(&self) -> [Vector3<f64>; 5] {
+        self.bone_points.map(Vector3::from)
+    }
+}
+
+impl SkinModel {
+    /// The jaw pose for a frame's skin features (the model's own skin points).
+    pub fn predict(&self, features: &[f64]) -> Pose {
+        let f = apply(&self.subject.transforms, features);
+        let b = self.regressor.predict(&f);
+        jaw_from_bone(&self.subject.bone(), &self.subject.rest_pose(), &b)
+    }
+
+    /// Check that `s` has the topology the skin points refer to.
+    pub fn check_topology(&self, s: &Subject, path: &std::path::Path) -> Result<()> {
+        if s.neutral.positions.len() != self.skin_vertices
+            || s.neutral.triangles.len() != self.skin_triangles
+        {
+            return Err(Error::invalid(
+                path,
+                "neutral",
+                format!(
+                    "has {} vertices and {} triangles; the model was learned on a topology of {} and {} (every subject shares one topology)",
+                    s.neutral.positions.len(),
+                    s.neutral.triangles.len(),
+                    self.skin_vertices,
+                    self.skin_triangles
+                ),
+            ));
+        }
+        Ok(())
+    }
+
+    /// Read and check a model file.
+    pub fn read(path: &std::path::Path) -> Result<SkinModel> {
+        let m: SkinModel = crate::capture::json::read_json(path, "skin model")?;
+        if m.format != MODEL_FORMAT {
+            return Err(Error::invalid(
+                path,
+                "format",
+                format!("is `{}`, expected `{MODEL_FORMAT}`", m.format),
+            ));
+        }
+        m.subject.rest.to_pose(path, "subject.rest")?;
+        let dim = m.skin_points.len() * 3;
+        let r = &m.regressor;
+        let bad = m.skin_points.iter().any(|p| p.triangle as usize >= m.skin_triangles)
+            || r.mean.len() != dim
+            || r.basis.iter().any(|b| b.len() != dim)
+            || r.support.iter().any(|s| s.len() != r.basis.len())
+            || r.outputs.len() != 15
+            || r.outputs.iter().any(|o| o.alpha.len() != r.support.len())
+            || !(r.width > 0.0);
+        if bad {
+            return Err(Error::invalid(
+                path,
+                "regressor",
+                "its sizes do not agree with one another (a damaged or hand-edited model)",
+            ));
+        }
+        Ok(m)
+    }
+}
+
+fn model(
+    points: Vec<SkinPoint>,
+    on: &Subject,
+    regressor: Regressor,
+    trained_on: Vec<String>,
+    settings: &SkinSettings,
+    subject: SubjectFit,
+) -> SkinModel {
+    SkinModel {
+        format: MODEL_FORMAT.into(),
+        skin_vertices: on.neutral.positions.len(),
+        skin_triangles: on.neutral.triangles.len(),
+        skin_points: points,
+        settings: settings.clone(),
+        trained_on,
+        regressor,
+        subject,
+    }
+}
+
+fn regress_error(s: &Subject, e: impl std::fmt::Display) -> Error {
+    Error::invalid(
+        &std::path::PathBuf::from(&s.name).join("face.json"),
+        "frames",
+        format!("cannot learn a mapping: {e}"),
+    )
+}
+
+/// The skin points for a set whose first subject is `s`.
+pub fn skin_points(s: &Subject, settings: &SkinSettings) -> Result<Vec<SkinPoint>> {
+    let (rest, _) = s.rest()?;
+    choose_skin_points(&s.neutral, &s.mandible, &rest, &settings.features)
+        .map_err(|e| regress_error(s, e))
+}
+
+/// Learn a mapping from frame indices `frames` of one subject (with jaw poses).
+pub fn learn_single(
+    s: &Subject,
+    points: Option<Vec<SkinPoint>>,
+    frames: &[usize],
+    settings: &SkinSettings,
+) -> Result<SkinModel> {
+    let (rest, _) = s.rest()?;
+    let points = match points {
+        Some(p) => p,
+        None => skin_points(s, settings)?,
+    };
+    let rows: Vec<usize> = frames.iter().copied().filter(|&i| s.jaw[i].is_some()).collect();
+    let x: Vec<Vec<f64>> = rows.iter().map(|&i| s.skin_features(&points, i)).collect();
+    let y: Vec<Vec<f64>> = rows.iter().filter_map(|&i| s.bone_features(&rest, i)).collect();
+    let cut = held_out_cut(x.len(), settings.regress.held_out);
+    let regressor =
+        Regressor::learn(&x, &y, cut, &settings.regress).map_err(|e| regress_error(s, e))?;
+    Ok(model(points, s, regressor, vec![s.name.clone()], settings, SubjectFit::of(s, &rest)))
+}
+
+fn held_out_cut(n: usize, share: f64) -> usize {
+    ((n as f64 * (1.0 - share)).round() as usize).clamp(n.min(4), n.saturating_sub(2).max(n.min(4)))
+}
+
+/// Up to `most` indices spread evenly over `0..n`.
+pub fn spaced(n: usize, most: usize) -> Vec<usize> {
+    if n <= most.max(1) {
+        return (0..n).collect();
+    }
+    (0..most).map(|i| i * n / most).collect()
+}
+
+/// The multi-subject mapping (Section 6.2): the first subject is the primary; every other is
+/// aligned to it by one rigid transform of all its skin features, then one mapping is learned
+/// from all of them. Every subject needs jaw poses.
+pub fn learn_multi(
+    subjects: &[&Subject],
+    points: Option<Vec<SkinPoint>>,
+    settings: &SkinSettings,
+) -> Result<(SkinModel, Vec<RetargetReport>)> {
+    let primary = subjects[0];
+    let points = match points {
+        Some(p) => p,
+        None => skin_points(primary, settings)?,
+    };
+    let all: Vec<usize> = (0..primary.frames.len()).collect();
+    let single = learn_single(primary, Some(points.clone()), &all, settings)?;
+    let mut parts: Vec<(Vec<Vec<f64>>, Vec<Vec<f64>>)> = Vec::new();
+    let mut reports = Vec::new();
+    for (k, s) in subjects.iter().enumerate() {
+        let (rest, _) = s.rest()?;
+        let rows: Vec<usize> = (0..s.frames.len()).filter(|&i| s.jaw[i].is_some()).collect();
+        let x: Vec<Vec<f64>> = rows.iter().map(|&i| s.skin_features(&points, i)).collect();
+        let y: Vec<Vec<f64>> = rows.iter().filter_map(|&i| s.bone_features(&rest, i)).collect();
+        let x = if k == 0 {
+            x
+        } else {
+            let sample = spaced(x.len(), 150);
+            let pairs: Vec<(Vec<f64>, Vec<f64>)> =
+                sample.iter().map(|&i| (x[i].clone(), y[i].clone())).collect();
+            let (t, report) = align_globally(&single.regressor, &pairs, &settings.retarget);
+            reports.push(report);
+            x.iter().map(|f| apply(&[t], f)).collect()
+        };
+        parts.push((x, y));
+    }
+    // Every subject's first frames learn, its last ones are held out to choose the
+    // hyperparameters: the rows are ordered so that one cut does both.
+    let (mut x, mut y, mut held_x, mut held_y) = (Vec::new(), Vec::new(), Vec::new(), Vec::new());
+    for (px, py) in parts {
+        let cut = held_out_cut(px.len(), settings.regress.held_out);
+        for (i, (f, b)) in px.into_iter().zip(py).enumerate() {
+            if i < cut {
+                x.push(f);
+                y.push(b);
+            } else {
+                held_x.push(f);
+                held_y.push(b);
+            }
+        }
+    }
+    let cut = x.len();
+    x.extend(held_x);
+    y.extend(held_y);
+    let regressor =
+        Regressor::learn(&x, &y, cut, &settings.regress).map_err(|e| regress_error(primary, e))?;
+    let names = subjects.iter().map(|s| s.name.clone()).collect();
+    let (rest, _) = primary.rest()?;
+    let fit = SubjectFit::of(primary, &rest);
+    Ok((model(points, primary, regressor, names, settings, fit), reports))
+}
+
+/// The model carried to `target` from its calibration poses (and its rest, where the skin is
+/// the neutral's and the bone at rest: a sixth calibration pose for free).
+pub fn retarget_to(
+    m: &SkinModel,
+    target: &Subject,
+    settings: &RetargetSettings,
+) -> Result<(SkinModel, RetargetReport)> {
+    let (rest, _) = target.rest()?;
+    let mut pairs: Vec<(Vec<f64>, Vec<f64>)> = target
+        .calibration_indices()?
+        .into_iter()
+        .filter_map(|(_, i)| {
+            Some((target.skin_features(&m.skin_points, i), target.bone_features(&rest, i)?))
+        })
+        .collect();
+    pairs.push((vec![0.0; m.skin_points.len() * 3], vec![0.0; 15]));
+    let (transforms, report) = retarget(&m.regressor, &pairs, settings);
+    let mut out = m.clone();
+    out.subject = SubjectFit {
+        transforms,
+        ..SubjectFit::of(target, &rest)
+    };
+    Ok((out, report))
+}
