@@ -181,6 +181,10 @@ pub struct FrameRecordJson {
     /// Absent in files that do not say (ground truth): such a frame counts as `ok`.
     #[serde(default, skip_serializing_if = "Option::is_none")]
     pub status: Option<Status>,
+    /// jawtrack's addition, written by `skin fill`: where the frame's jaw pose came from,
+    /// `teeth` (the tracker) or `skin` (predicted from the face surface).
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub jaw_source: Option<String>,
 }
 
 impl FrameRecordJson {

@@ -45,6 +45,20 @@ pub enum Command {
         #[arg(short, long)]
         out: PathBuf,
     },
+    /// Fill the jaw of a tracks.json where the teeth tracker was not confident, from the skin:
+    /// its confident frames retarget the model, which predicts the rest (`jaw_source` says
+    /// which is which). The face sequence's frame numbers are the capture's.
+    Fill {
+        model: PathBuf,
+        face: PathBuf,
+        /// tracks.json of the same capture (teeth tracker).
+        #[arg(long)]
+        tracks: PathBuf,
+        #[arg(short, long)]
+        out: PathBuf,
+        #[command(flatten)]
+        settings: SettingsArg,
+    },
     /// Leave-one-subject-out evaluation of a set of subjects (DIR/<name>/face.json), against
     /// the Procrustes baseline; a Table-1-style comparison.
     Eval {
@@ -174,6 +188,27 @@ pub fn run(c: Command) -> anyhow::Result<()> {
                     errors.len(), st.mean, st.median, st.p95
                 );
             }
+            println!("wrote {}", out.display());
+        }
+        Command::Fill { model, face, tracks, out, settings } => {
+            let settings = settings.read()?;
+            jawtrack::capture::check_replaceable(&out)?;
+            let m = SkinModel::read(&model)?;
+            let s = load(&face)?;
+            m.check_topology(&s, &face.join("face.json"))?;
+            let t: jawtrack::capture::json::TracksJson =
+                jawtrack::capture::json::read_json(&tracks, "tracks")?;
+            let (filled, r) = jawtrack::skin::fill::fill(&m, &s, &t, &tracks, &settings.retarget)?;
+            write_json_atomic(&out, &filled)?;
+            println!(
+                "{} frames from the teeth, {} from the skin; retargeted on {} confident frames ({:?}): Σ|Φ − B|² {:.3} → {:.3} mm²",
+                r.teeth_frames,
+                r.skin_frames,
+                r.calibration_frames.len(),
+                r.calibration_frames,
+                r.retarget.cost_before,
+                r.retarget.cost_after
+            );
             println!("wrote {}", out.display());
         }
         Command::Eval { dir, json, plot, settings } => {

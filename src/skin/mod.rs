@@ -15,3 +15,4 @@ pub mod retarget;
 pub mod subject;
 pub mod eval;
 pub mod plot;
+pub mod fill;

@@ -266,11 +266,21 @@ pub fn retarget_to(
     target: &Subject,
     settings: &RetargetSettings,
 ) -> Result<(SkinModel, RetargetReport)> {
+    let frames: Vec<usize> = target.calibration_indices()?.into_iter().map(|(_, i)| i).collect();
+    retarget_on(m, target, &frames, settings)
+}
+
+/// The model carried to `target` from the jaw poses of frame indices `frames` (and its rest).
+pub fn retarget_on(
+    m: &SkinModel,
+    target: &Subject,
+    frames: &[usize],
+    settings: &RetargetSettings,
+) -> Result<(SkinModel, RetargetReport)> {
     let (rest, _) = target.rest()?;
-    let mut pairs: Vec<(Vec<f64>, Vec<f64>)> = target
-        .calibration_indices()?
-        .into_iter()
-        .filter_map(|(_, i)| {
+    let mut pairs: Vec<(Vec<f64>, Vec<f64>)> = frames
+        .iter()
+        .filter_map(|&i| {
             Some((target.skin_features(&m.skin_points, i), target.bone_features(&rest, i)?))
         })
         .collect();

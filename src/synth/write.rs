@@ -131,6 +131,7 @@ pub(super) fn write_capture(
             energy: None,
             area_error: None,
             status: None,
+            jaw_source: None,
         })
         .collect();
     write_json_atomic(

@@ -50,6 +50,7 @@ pub fn record(r: &FrameResult) -> FrameRecordJson {
             .as_ref()
             .map(|[u, l]| json!({"upper": u.area_error(), "lower": l.area_error()})),
         status: Some(r.status),
+        jaw_source: None,
     }
 }
 
