@@ -76,7 +76,8 @@ fn open_error(dir: &Path) -> String {
 }
 
 fn edit_json(path: &Path, edit: impl FnOnce(&mut serde_json::Value)) {
-    let mut v: serde_json::Value = serde_json::from_str(&std::fs::read_to_string(path).unwrap()).unwrap();
+    let mut v: serde_json::Value =
+        serde_json::from_str(&std::fs::read_to_string(path).unwrap()).unwrap();
     edit(&mut v);
     std::fs::write(path, serde_json::to_string(&v).unwrap()).unwrap();
 }
@@ -89,12 +90,20 @@ fn a_synthetic_set_is_in_the_format_and_the_same_for_the_same_seed() {
     let cal = s.calibration_indices().unwrap();
     assert_eq!(cal.len(), 5);
     // The rest pose is found from a frame at rest: the pose the sequence starts in.
-    let (rest, rest_frame) = s.rest().unwrap();
+    let (rest, rest_frame, _) = s.rest().unwrap();
     let off = vertex_error(&s.mandible, &rest, &s.jaw[0].unwrap());
-    assert!(off < 0.3, "rest from frame {rest_frame} is {off} mm from the start's pose");
+    assert!(
+        off < 0.3,
+        "rest from frame {rest_frame} is {off} mm from the start's pose"
+    );
     // Same seed, same bytes; another subject, another face.
     let again = tempfile::tempdir().unwrap();
-    let opts = FaceSynthOptions { subjects: 1, frames: 240, seed: 5, ..FaceSynthOptions::default() };
+    let opts = FaceSynthOptions {
+        subjects: 1,
+        frames: 240,
+        seed: 5,
+        ..FaceSynthOptions::default()
+    };
     generate_faces(&again.path().join("f"), &opts, &|| {}).unwrap();
     for f in ["neutral.obj", "jaw.json", "frames/000123.ply"] {
         assert_eq!(
@@ -116,7 +125,8 @@ fn bad_face_sequences_are_refused_with_the_file_and_the_field() {
     let frame = dir.join("frames/000007.ply");
     let text = std::fs::read(&frame).unwrap();
     let header_end = text.windows(11).position(|w| w == b"end_header\n").unwrap() + 11;
-    let header = String::from_utf8_lossy(&text[..header_end]).replace("element vertex 2304", "element vertex 2303");
+    let header = String::from_utf8_lossy(&text[..header_end])
+        .replace("element vertex 2304", "element vertex 2303");
     let mut short = header.into_bytes();
     short.extend_from_slice(&text[header_end..header_end + 2303 * 12]);
     std::fs::write(&frame, short).unwrap();
@@ -130,13 +140,19 @@ fn bad_face_sequences_are_refused_with_the_file_and_the_field() {
     assert_mentions(&open_error(&dir), &["face.json", "frames.count", "1000000"]);
     std::fs::write(&face, &original).unwrap();
     edit_json(&face, |v| v["calibration"]["left"] = 9999.into());
-    assert_mentions(&open_error(&dir), &["face.json", "calibration.left", "9999"]);
+    assert_mentions(
+        &open_error(&dir),
+        &["face.json", "calibration.left", "9999"],
+    );
     std::fs::write(&face, &original).unwrap();
     edit_json(&face, |v| v["neutral"] = "../../outside.obj".into());
     assert_mentions(&open_error(&dir), &["face.json", "neutral", "climbs out"]);
     std::fs::write(&face, &original).unwrap();
     edit_json(&face, |v| v["format"] = "jawtrack-face/9".into());
-    assert_mentions(&open_error(&dir), &["face.json", "format", "jawtrack-face/1"]);
+    assert_mentions(
+        &open_error(&dir),
+        &["face.json", "format", "jawtrack-face/1"],
+    );
     std::fs::write(&face, &original).unwrap();
     let jaw = dir.join("jaw.json");
     edit_json(&jaw, |v| v["poses"][3]["rotation"][0][0] = 2.0.into());
@@ -154,19 +170,39 @@ fn the_mapping_beats_the_baseline_and_retargeting_helps() {
     let e = evaluate(&subjects, &quick(), &|_| {}).unwrap();
     for s in &e.subjects {
         // Margins well outside the figures measured on this set (README has the real ones).
-        assert!(s.baseline_mm > 2.0, "{}: the baseline should be poor: {}", s.name, s.baseline_mm);
+        assert!(
+            s.baseline_mm > 2.0,
+            "{}: the baseline should be poor: {}",
+            s.name,
+            s.baseline_mm
+        );
         assert!(
             s.multi_subject_mm < s.baseline_mm / 3.0,
             "{}: multi-subject {} vs baseline {}",
-            s.name, s.multi_subject_mm, s.baseline_mm
+            s.name,
+            s.multi_subject_mm,
+            s.baseline_mm
         );
-        assert!(s.retargeted_mm < s.baseline_mm / 3.0, "{}: {}", s.name, s.retargeted_mm);
-        assert!(s.multi_subject_mm < 1.5, "{}: {}", s.name, s.multi_subject_mm);
+        assert!(
+            s.retargeted_mm < s.baseline_mm / 3.0,
+            "{}: {}",
+            s.name,
+            s.retargeted_mm
+        );
+        assert!(
+            s.multi_subject_mm < 1.5,
+            "{}: {}",
+            s.name,
+            s.multi_subject_mm
+        );
         assert_eq!(s.series.multi_subject.len(), 240);
     }
     let mean_un: f64 = e.subjects.iter().map(|s| s.uncalibrated_mm).sum::<f64>();
     let mean_re: f64 = e.subjects.iter().map(|s| s.retargeted_mm).sum::<f64>();
-    assert!(mean_re < mean_un, "retargeting should help: {mean_re} vs {mean_un}");
+    assert!(
+        mean_re < mean_un,
+        "retargeting should help: {mean_re} vs {mean_un}"
+    );
 }
 
 #[test]
@@ -184,15 +220,24 @@ fn a_model_predicts_its_own_subject_and_survives_a_round_trip_through_its_file()
     // training are the widest poses.
     let err: f64 = (0..200)
         .step_by(10)
-        .map(|i| vertex_error(&s.mandible, &back.predict(&s.skin_features(&m.skin_points, i)), &s.jaw[i].unwrap()))
+        .map(|i| {
+            vertex_error(
+                &s.mandible,
+                &back.predict(&s.skin_features(&m.skin_points, i)),
+                &s.jaw[i].unwrap(),
+            )
+        })
         .sum::<f64>()
         / 20.0;
     assert!(err < 1.0, "{err}");
     // A damaged model is an error, not a panic.
-    let mut text: serde_json::Value = serde_json::from_str(&std::fs::read_to_string(&path).unwrap()).unwrap();
+    let mut text: serde_json::Value =
+        serde_json::from_str(&std::fs::read_to_string(&path).unwrap()).unwrap();
     text["regressor"]["outputs"].as_array_mut().unwrap().pop();
     std::fs::write(&path, text.to_string()).unwrap();
-    let e = jawtrack::skin::model::SkinModel::read(&path).unwrap_err().to_string();
+    let e = jawtrack::skin::model::SkinModel::read(&path)
+        .unwrap_err()
+        .to_string();
     assert_mentions(&e, &["model.json", "regressor"]);
     // Retargeting to another subject lowers the error on its calibration poses.
     let t = load("s1");
@@ -219,7 +264,11 @@ fn frames_the_teeth_tracker_misses_are_filled_from_the_skin() {
             .iter()
             .zip(&target.jaw)
             .map(|(&frame, jaw)| {
-                let jaw = if lost(frame) { jawtrack::geometry::Pose::default() } else { jaw.unwrap() };
+                let jaw = if lost(frame) {
+                    jawtrack::geometry::Pose::default()
+                } else {
+                    jaw.unwrap()
+                };
                 FrameRecordJson {
                     frame,
                     upper: PoseJson::from(&upper),
@@ -227,7 +276,11 @@ fn frames_the_teeth_tracker_misses_are_filled_from_the_skin() {
                     jaw: Some(PoseJson::from(&jaw)),
                     energy: None,
                     area_error: None,
-                    status: Some(if lost(frame) { Status::LowConfidence } else { Status::Ok }),
+                    status: Some(if lost(frame) {
+                        Status::LowConfidence
+                    } else {
+                        Status::Ok
+                    }),
                     jaw_source: None,
                 }
             })
@@ -245,7 +298,11 @@ fn frames_the_teeth_tracker_misses_are_filled_from_the_skin() {
         assert_eq!(source, if lost(r.frame) { "skin" } else { "teeth" });
         let poses = r.poses(path).unwrap();
         if lost(r.frame) {
-            errors.push(vertex_error(&target.mandible, &poses.jaw(), &target.jaw[i].unwrap()));
+            errors.push(vertex_error(
+                &target.mandible,
+                &poses.jaw(),
+                &target.jaw[i].unwrap(),
+            ));
         }
     }
     // A mapping learned from one small subject (240 frames): the margin is wide.

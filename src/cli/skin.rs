@@ -91,9 +91,13 @@ impl SettingsArg {
 }
 
 fn load(dir: &Path) -> anyhow::Result<Subject> {
-    let seq = FaceSequence::open(dir).with_context(|| format!("invalid face sequence {}", dir.display()))?;
+    let seq = FaceSequence::open(dir)
+        .with_context(|| format!("invalid face sequence {}", dir.display()))?;
     for f in &seq.unknown_fields {
-        eprintln!("note: {}: field `{f}` is not in the format and was ignored", dir.join("face.json").display());
+        eprintln!(
+            "note: {}: field `{f}` is not in the format and was ignored",
+            dir.join("face.json").display()
+        );
     }
     let name = dir
         .file_name()
@@ -104,15 +108,26 @@ fn load(dir: &Path) -> anyhow::Result<Subject> {
     let s = Subject::load(&seq, &name, &|| bar.inc(1))
         .with_context(|| format!("invalid face sequence {}", dir.display()))?;
     bar.finish_and_clear();
+    if let Some(note) = s.rest_note() {
+        eprintln!("note: {note}");
+    }
     Ok(s)
 }
 
 pub fn run(c: Command) -> anyhow::Result<()> {
     match c {
-        Command::Learn { faces, out, first, settings } => {
+        Command::Learn {
+            faces,
+            out,
+            first,
+            settings,
+        } => {
             let settings = settings.read()?;
             jawtrack::capture::check_replaceable(&out)?;
-            let subjects = faces.iter().map(|d| load(d)).collect::<anyhow::Result<Vec<_>>>()?;
+            let subjects = faces
+                .iter()
+                .map(|d| load(d))
+                .collect::<anyhow::Result<Vec<_>>>()?;
             let clock = Instant::now();
             let model = if subjects.len() == 1 {
                 let s = &subjects[0];
@@ -121,7 +136,7 @@ pub fn run(c: Command) -> anyhow::Result<()> {
                 learn_single(s, None, &rows, &settings)?
             } else {
                 let refs: Vec<&Subject> = subjects.iter().collect();
-                learn_multi(&refs, None, &settings)?.0
+                learn_multi(&refs, None, None, &settings)?.0
             };
             write_json_atomic(&out, &model)?;
             let r = &model.regressor;
@@ -140,7 +155,12 @@ pub fn run(c: Command) -> anyhow::Result<()> {
             );
             println!("wrote {}", out.display());
         }
-        Command::Retarget { model, face, out, settings } => {
+        Command::Retarget {
+            model,
+            face,
+            out,
+            settings,
+        } => {
             let settings = settings.read()?;
             jawtrack::capture::check_replaceable(&out)?;
             let m = SkinModel::read(&model)?;
@@ -170,11 +190,17 @@ pub fn run(c: Command) -> anyhow::Result<()> {
                     .frames
                     .iter()
                     .zip(&poses)
-                    .map(|(&frame, p)| JawPoseJson { frame, pose: PoseJson::from(p) })
+                    .map(|(&frame, p)| JawPoseJson {
+                        frame,
+                        pose: PoseJson::from(p),
+                    })
                     .collect(),
             };
             write_json_atomic(&out, &jaw)?;
-            println!("predicted {} frames, {per_frame:.3} ms a frame (reading excluded)", poses.len());
+            println!(
+                "predicted {} frames, {per_frame:.3} ms a frame (reading excluded)",
+                poses.len()
+            );
             let errors: Vec<f64> = s
                 .jaw
                 .iter()
@@ -185,12 +211,21 @@ pub fn run(c: Command) -> anyhow::Result<()> {
                 let st = jawtrack::stats::Stats::of(&errors);
                 println!(
                     "against the jaw poses in the sequence ({} frames): mean {:.3}, median {:.3}, p95 {:.3} mm",
-                    errors.len(), st.mean, st.median, st.p95
+                    errors.len(),
+                    st.mean,
+                    st.median,
+                    st.p95
                 );
             }
             println!("wrote {}", out.display());
         }
-        Command::Fill { model, face, tracks, out, settings } => {
+        Command::Fill {
+            model,
+            face,
+            tracks,
+            out,
+            settings,
+        } => {
             let settings = settings.read()?;
             jawtrack::capture::check_replaceable(&out)?;
             let m = SkinModel::read(&model)?;
@@ -211,13 +246,21 @@ pub fn run(c: Command) -> anyhow::Result<()> {
             );
             println!("wrote {}", out.display());
         }
-        Command::Eval { dir, json, plot, settings } => {
+        Command::Eval {
+            dir,
+            json,
+            plot,
+            settings,
+        } => {
             let settings = settings.read()?;
             if let Some(p) = &plot {
                 jawtrack::capture::check_replaceable(p)?;
             }
             let dirs = subject_dirs(&dir)?;
-            let subjects = dirs.iter().map(|(_, d)| load(d)).collect::<anyhow::Result<Vec<_>>>()?;
+            let subjects = dirs
+                .iter()
+                .map(|(_, d)| load(d))
+                .collect::<anyhow::Result<Vec<_>>>()?;
             let e = evaluate(&subjects, &settings, &|m| eprintln!("{m}"))?;
             if let Some(p) = &plot {
                 jawtrack::skin::plot::error_over_frames(p, &e)?;

@@ -69,7 +69,9 @@ pub fn run(a: Args) -> anyhow::Result<()> {
         return faces(a);
     }
     let Some(out) = a.out.clone() else {
-        anyhow::bail!("synth: give the folder to write the capture to (OUT), or --face for face sequences");
+        anyhow::bail!(
+            "synth: give the folder to write the capture to (OUT), or --face for face sequences"
+        );
     };
     let opts = SynthOptions {
         frames: a.frames.unwrap_or(48),
@@ -113,11 +115,22 @@ fn faces(a: Args) -> anyhow::Result<()> {
         println!("{}", serde_json::to_string_pretty(&report)?);
         return Ok(());
     }
-    println!("wrote {} subjects to {} in {:.1} s", report.subjects.len(), out.display(), report.seconds);
+    println!(
+        "wrote {} subjects to {} in {:.1} s",
+        report.subjects.len(),
+        out.display(),
+        report.seconds
+    );
     for s in &report.subjects {
         println!(
             "  {}: {} frames, {} skin vertices, chin tissue {:.1} mm, sliding {:.2}, opening up to {:.1} mm, skin moves up to {:.1} mm",
-            s.name, s.frames, s.skin_vertices, s.chin_tissue_mm, s.sliding, s.max_opening_mm, s.max_skin_mm
+            s.name,
+            s.frames,
+            s.skin_vertices,
+            s.chin_tissue_mm,
+            s.sliding,
+            s.max_opening_mm,
+            s.max_skin_mm
         );
     }
     println!("evaluate them with: jawtrack skin eval {}", out.display());

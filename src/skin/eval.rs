@@ -71,7 +71,10 @@ struct Scored {
 }
 
 fn score(s: &Subject, rows: &[usize], predict: &dyn Fn(usize) -> Pose) -> Scored {
-    let mut out = Scored { mm: Vec::new(), bone: Vec::new() };
+    let mut out = Scored {
+        mm: Vec::new(),
+        bone: Vec::new(),
+    };
     for &i in rows {
         let Some(truth) = s.jaw[i] else { continue };
         let p = predict(i);
@@ -118,10 +121,15 @@ pub fn evaluate(
     let mut predicted = 0usize;
     let mut scores = Vec::new();
     for (t, target) in subjects.iter().enumerate() {
-        progress(&format!("subject {} ({} of {})", target.name, t + 1, subjects.len()));
+        progress(&format!(
+            "subject {} ({} of {})",
+            target.name,
+            t + 1,
+            subjects.len()
+        ));
         let ps = set_for(t);
         let points = &point_sets[ps];
-        let (rest, _) = target.rest()?;
+        let (rest, ..) = target.rest()?;
         let n = target.frames.len();
         let all: Vec<usize> = (0..n).collect();
         // Single subject: first frames learn, the rest test.
@@ -130,13 +138,24 @@ pub fn evaluate(
         let own = learn_single(target, Some(points.clone()), &all[..cut], settings)?;
         learn_times.push(clock.elapsed().as_secs_f64());
         learn_frames = learn_frames.max(cut);
-        let features: Vec<Vec<f64>> = all.iter().map(|&i| target.skin_features(points, i)).collect();
+        let features: Vec<Vec<f64>> = all
+            .iter()
+            .map(|&i| target.skin_features(points, i))
+            .collect();
         let clock = Instant::now();
-        let single = score(target, &all[cut..], &|i| own.predict(&target.skin_features(points, i)));
+        let single = score(target, &all[cut..], &|i| {
+            own.predict(&target.skin_features(points, i))
+        });
         predict_time += clock.elapsed().as_secs_f64();
         predicted += n - cut;
         let base = |i: usize| {
-            baseline_jaw(points, &target.neutral.triangles, &target.neutral.positions, &target.skin[i], &rest)
+            baseline_jaw(
+                points,
+                &target.neutral.triangles,
+                &target.neutral.positions,
+                &target.skin[i],
+                &rest,
+            )
         };
         let single_base = score(target, &all[cut..], &base);
         // Single sources, retargeted.
@@ -152,7 +171,14 @@ pub fn evaluate(
                 sources[ps][k] = Some(learn_single(src, Some(points.clone()), &rows, settings)?);
             }
             let m = sources[ps][k].as_ref().expect("learned above");
-            let (plain, _) = retarget_to(m, target, &super::retarget::RetargetSettings { iterations: 0, ..settings.retarget })?;
+            let (plain, _) = retarget_to(
+                m,
+                target,
+                &super::retarget::RetargetSettings {
+                    iterations: 0,
+                    ..settings.retarget
+                },
+            )?;
             let raw = score(target, &all, &|i| plain.predict(&features[i]));
             uncalibrated = uncalibrated.min(mean(&raw.mm));
             let (r, _) = retarget_to(m, target, &settings.retarget)?;
@@ -163,10 +189,22 @@ pub fn evaluate(
                 best = Some((e, mean(&sc.bone), src.name.clone()));
             }
         }
-        let (retargeted_mm, retargeted_bone_mm, retargeted_from) = best.expect("two subjects or more");
+        let (retargeted_mm, retargeted_bone_mm, retargeted_from) =
+            best.expect("two subjects or more");
         // Multi-subject from all the others.
-        let others: Vec<&Subject> = subjects.iter().enumerate().filter(|(k, _)| *k != t).map(|(_, s)| s).collect();
-        let (multi, _) = learn_multi(&others, Some(points.clone()), settings)?;
+        let others: Vec<&Subject> = subjects
+            .iter()
+            .enumerate()
+            .filter(|(k, _)| *k != t)
+            .map(|(_, s)| s)
+            .collect();
+        let primary = if t == 0 { 1 } else { 0 };
+        let (multi, _) = learn_multi(
+            &others,
+            Some(points.clone()),
+            sources[ps][primary].as_ref(),
+            settings,
+        )?;
         let (multi, _) = retarget_to(&multi, target, &settings.retarget)?;
         let multi_sc = score(target, &all, &|i| multi.predict(&features[i]));
         let base_sc = score(target, &all, &base);

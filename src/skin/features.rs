@@ -5,6 +5,7 @@
 //! subject's rest pose.
 
 use nalgebra::Vector3;
+use rayon::prelude::*;
 use serde::{Deserialize, Serialize};
 
 use crate::capture::Mesh;
@@ -77,6 +78,9 @@ pub enum FeatureError {
 }
 
 /// Choose skin points on `neutral` from the mandible placed at `rest` (`upper_from_lower`).
+/// A mandible that is not closed has no reliable inside: both orientations of its normals are
+/// tried, and the one that finds more skin kept; where the tissue is thicker than the setting
+/// finds enough points through, the depth is doubled once.
 pub fn choose_skin_points(
     neutral: &Mesh,
     mandible: &Mesh,
@@ -84,43 +88,66 @@ pub fn choose_skin_points(
     s: &FeatureSettings,
 ) -> Result<Vec<SkinPoint>, FeatureError> {
     let (bone, normals) = surface_samples(mandible, rest);
+    let flipped: Vec<Vector3<f64>> = normals.iter().map(|n| -n).collect();
+    let mut hits = candidates(neutral, &bone, &normals, s, s.max_depth_mm);
+    let other = candidates(neutral, &bone, &flipped, s, s.max_depth_mm);
+    if other.len() > hits.len() {
+        hits = other;
+    }
+    if hits.len() < s.count / 2 {
+        let deeper = candidates(neutral, &bone, &normals, s, 2.0 * s.max_depth_mm);
+        let deeper_flipped = candidates(neutral, &bone, &flipped, s, 2.0 * s.max_depth_mm);
+        for h in [deeper, deeper_flipped] {
+            if h.len() > hits.len() {
+                hits = h;
+            }
+        }
+    }
+    if hits.len() < 3 {
+        return Err(FeatureError::TooFew {
+            found: hits.len(),
+            depth: 2.0 * s.max_depth_mm,
+        });
+    }
+    Ok(farthest_points(&hits, s.count))
+}
+
+/// Candidate skin points: where the outward normals of the mandible's points below the incisal
+/// edge meet the skin within `depth`.
+fn candidates(
+    neutral: &Mesh,
+    bone: &[Vector3<f64>],
+    normals: &[Vector3<f64>],
+    s: &FeatureSettings,
+    depth: f64,
+) -> Vec<(SkinPoint, Vector3<f64>)> {
     let centre = bone.iter().sum::<Vector3<f64>>() / bone.len().max(1) as f64;
-    let (_, hi) = bounds(&bone);
+    let (_, hi) = bounds(bone);
     let front = bone
         .iter()
         .filter(|p| p.z > hi.z - 15.0)
         .map(|p| p.y)
         .fold(f64::NEG_INFINITY, f64::max);
     let top = front - s.below_incisal_mm;
-    let skin_tris = &neutral.triangles;
-    let skin_v = &neutral.positions;
-    let mut hits: Vec<(SkinPoint, Vector3<f64>)> = Vec::new();
-    for (p, n) in bone.iter().zip(&normals) {
-        if p.y > top || n.norm() < 0.5 {
-            continue;
-        }
-        let out = Vector3::new(p.x - centre.x, 0.0, p.z - centre.z);
-        let outward = out.norm() > 1e-9 && n.dot(&out.normalize()) >= s.outward_cos;
-        if !outward && n.y > -0.6 {
-            continue;
-        }
-        if let Some((tri, bary, t)) = cast(p, n, skin_tris, skin_v)
-            && t <= s.max_depth_mm
-        {
+    bone.par_iter()
+        .zip(normals.par_iter())
+        .filter_map(|(p, n)| {
+            if p.y > top || n.norm() < 0.5 {
+                return None;
+            }
+            let out = Vector3::new(p.x - centre.x, 0.0, p.z - centre.z);
+            let outward = out.norm() > 1e-9 && n.dot(&out.normalize()) >= s.outward_cos;
+            if !outward && n.y > -0.6 {
+                return None;
+            }
+            let (tri, bary, t) = cast(p, n, &neutral.triangles, &neutral.positions)?;
             let point = SkinPoint {
                 triangle: tri,
                 barycentric: bary,
             };
-            hits.push((point, p + n * t));
-        }
-    }
-    if hits.len() < 3 {
-        return Err(FeatureError::TooFew {
-            found: hits.len(),
-            depth: s.max_depth_mm,
-        });
-    }
-    Ok(farthest_points(&hits, s.count))
+            (t <= depth).then_some((point, p + n * t))
+        })
+        .collect()
 }
 
 /// Farthest-point sampling: spread the points evenly, starting from the most anterior.
@@ -227,9 +254,16 @@ fn vertex_normals(mesh: &Mesh) -> Vec<Vector3<f64>> {
             n[i as usize] += face;
         }
     }
-    let sign = if mesh.signed_volume() < 0.0 { -1.0 } else { 1.0 };
+    let sign = if mesh.signed_volume() < 0.0 {
+        -1.0
+    } else {
+        1.0
+    };
     n.into_iter()
-        .map(|v| v.try_normalize(1e-12).map_or(Vector3::zeros(), |u| u * sign))
+        .map(|v| {
+            v.try_normalize(1e-12)
+                .map_or(Vector3::zeros(), |u| u * sign)
+        })
         .collect()
 }
 

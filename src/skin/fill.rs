@@ -42,7 +42,9 @@ pub fn fill(
         if r.status() != Status::Ok {
             continue;
         }
-        let Some(i) = subject.index_of(r.frame) else { continue };
+        let Some(i) = subject.index_of(r.frame) else {
+            continue;
+        };
         subject.jaw[i] = Some(r.poses(tracks_path)?.jaw());
         teeth += 1;
     }
@@ -53,15 +55,20 @@ pub fn fill(
             "no `ok` frame of the tracks is a frame of the face sequence (their frame numbers must be the capture's)",
         ));
     }
-    let (rest, _) = subject.rest()?;
+    let (rest, ..) = subject.rest()?;
     // Spread the calibration over the motion: farthest-point sampling of the menton's travel.
-    let known: Vec<usize> = (0..subject.frames.len()).filter(|&i| subject.jaw[i].is_some()).collect();
+    let known: Vec<usize> = (0..subject.frames.len())
+        .filter(|&i| subject.jaw[i].is_some())
+        .collect();
     let menton = |i: usize| -> Vector3<f64> {
         let b = subject.bone_features(&rest, i).expect("a known frame");
         Vector3::new(b[0], b[1], b[2])
     };
     let mut chosen = vec![known[0]];
-    let mut dist: Vec<f64> = known.iter().map(|&i| (menton(i) - menton(known[0])).norm()).collect();
+    let mut dist: Vec<f64> = known
+        .iter()
+        .map(|&i| (menton(i) - menton(known[0])).norm())
+        .collect();
     while chosen.len() < MAX_CALIBRATION.min(known.len()) {
         let (j, d) = dist
             .iter()
@@ -85,9 +92,13 @@ pub fn fill(
             r.jaw_source = Some("teeth".into());
             continue;
         }
-        let Some(i) = subject.index_of(r.frame) else { continue };
+        let Some(i) = subject.index_of(r.frame) else {
+            continue;
+        };
         let jaw = m.predict(&subject.skin_features(&m.skin_points, i));
-        let upper = r.upper.to_pose(tracks_path, &format!("frames[{}].upper", r.frame))?;
+        let upper = r
+            .upper
+            .to_pose(tracks_path, &format!("frames[{}].upper", r.frame))?;
         r.lower = PoseJson::from(&upper.compose(&jaw));
         r.jaw = Some(PoseJson::from(&jaw));
         r.jaw_source = Some("skin".into());

@@ -264,7 +264,9 @@ pub fn subject_dirs(dir: &Path) -> Result<Vec<(String, PathBuf)>> {
     let entries = std::fs::read_dir(dir).map_err(|e| Error::read(dir, "set of subjects", e))?;
     let mut out = Vec::new();
     for e in entries {
-        let p = e.map_err(|e| Error::read(dir, "set of subjects", e))?.path();
+        let p = e
+            .map_err(|e| Error::read(dir, "set of subjects", e))?
+            .path();
         if p.join("face.json").is_file()
             && let Some(name) = p.file_name().and_then(|n| n.to_str())
         {

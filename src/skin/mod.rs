@@ -6,13 +6,13 @@
 //! [`retarget`] carries a mapping to a new subject; [`baseline`] is the paper's comparison;
 //! [`eval`] scores them all.
 
-pub mod features;
-pub mod format;
-pub mod regress;
 pub mod baseline;
+pub mod eval;
+pub mod features;
+pub mod fill;
+pub mod format;
 pub mod model;
+pub mod plot;
+pub mod regress;
 pub mod retarget;
 pub mod subject;
-pub mod eval;
-pub mod plot;
-pub mod fill;

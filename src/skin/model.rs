@@ -8,7 +8,9 @@ use serde::{Deserialize, Serialize};
 
 use super::features::{FeatureSettings, SkinPoint, choose_skin_points};
 use super::regress::{RegressSettings, Regressor};
-use super::retarget::{FeatureTransform, RetargetReport, RetargetSettings, align_globally, apply, retarget};
+use super::retarget::{
+    FeatureTransform, RetargetReport, RetargetSettings, align_globally, apply, retarget,
+};
 use super::subject::{Subject, jaw_from_bone};
 use crate::capture::json::PoseJson;
 use crate::error::{Error, Result};
@@ -113,7 +115,10 @@ impl SkinModel {
         m.subject.rest.to_pose(path, "subject.rest")?;
         let dim = m.skin_points.len() * 3;
         let r = &m.regressor;
-        let bad = m.skin_points.iter().any(|p| p.triangle as usize >= m.skin_triangles)
+        let bad = m
+            .skin_points
+            .iter()
+            .any(|p| p.triangle as usize >= m.skin_triangles)
             || r.mean.len() != dim
             || r.basis.iter().any(|b| b.len() != dim)
             || r.support.iter().any(|s| s.len() != r.basis.len())
@@ -161,7 +166,7 @@ fn regress_error(s: &Subject, e: impl std::fmt::Display) -> Error {
 
 /// The skin points for a set whose first subject is `s`.
 pub fn skin_points(s: &Subject, settings: &SkinSettings) -> Result<Vec<SkinPoint>> {
-    let (rest, _) = s.rest()?;
+    let (rest, ..) = s.rest()?;
     choose_skin_points(&s.neutral, &s.mandible, &rest, &settings.features)
         .map_err(|e| regress_error(s, e))
 }
@@ -173,18 +178,32 @@ pub fn learn_single(
     frames: &[usize],
     settings: &SkinSettings,
 ) -> Result<SkinModel> {
-    let (rest, _) = s.rest()?;
+    let (rest, ..) = s.rest()?;
     let points = match points {
         Some(p) => p,
         None => skin_points(s, settings)?,
     };
-    let rows: Vec<usize> = frames.iter().copied().filter(|&i| s.jaw[i].is_some()).collect();
+    let rows: Vec<usize> = frames
+        .iter()
+        .copied()
+        .filter(|&i| s.jaw[i].is_some())
+        .collect();
     let x: Vec<Vec<f64>> = rows.iter().map(|&i| s.skin_features(&points, i)).collect();
-    let y: Vec<Vec<f64>> = rows.iter().filter_map(|&i| s.bone_features(&rest, i)).collect();
+    let y: Vec<Vec<f64>> = rows
+        .iter()
+        .filter_map(|&i| s.bone_features(&rest, i))
+        .collect();
     let cut = held_out_cut(x.len(), settings.regress.held_out);
     let regressor =
         Regressor::learn(&x, &y, cut, &settings.regress).map_err(|e| regress_error(s, e))?;
-    Ok(model(points, s, regressor, vec![s.name.clone()], settings, SubjectFit::of(s, &rest)))
+    Ok(model(
+        points,
+        s,
+        regressor,
+        vec![s.name.clone()],
+        settings,
+        SubjectFit::of(s, &rest),
+    ))
 }
 
 fn held_out_cut(n: usize, share: f64) -> usize {
@@ -202,9 +221,13 @@ pub fn spaced(n: usize, most: usize) -> Vec<usize> {
 /// The multi-subject mapping (Section 6.2): the first subject is the primary; every other is
 /// aligned to it by one rigid transform of all its skin features, then one mapping is learned
 /// from all of them. Every subject needs jaw poses.
+///
+/// `primary_model`, when given, is the primary's own mapping on all its frames with the same
+/// skin points (saves learning it again).
 pub fn learn_multi(
     subjects: &[&Subject],
     points: Option<Vec<SkinPoint>>,
+    primary_model: Option<&SkinModel>,
     settings: &SkinSettings,
 ) -> Result<(SkinModel, Vec<RetargetReport>)> {
     let primary = subjects[0];
@@ -213,20 +236,34 @@ pub fn learn_multi(
         None => skin_points(primary, settings)?,
     };
     let all: Vec<usize> = (0..primary.frames.len()).collect();
-    let single = learn_single(primary, Some(points.clone()), &all, settings)?;
+    let learned;
+    let single = match primary_model {
+        Some(m) => m,
+        None => {
+            learned = learn_single(primary, Some(points.clone()), &all, settings)?;
+            &learned
+        }
+    };
     let mut parts: Vec<(Vec<Vec<f64>>, Vec<Vec<f64>>)> = Vec::new();
     let mut reports = Vec::new();
     for (k, s) in subjects.iter().enumerate() {
-        let (rest, _) = s.rest()?;
-        let rows: Vec<usize> = (0..s.frames.len()).filter(|&i| s.jaw[i].is_some()).collect();
+        let (rest, ..) = s.rest()?;
+        let rows: Vec<usize> = (0..s.frames.len())
+            .filter(|&i| s.jaw[i].is_some())
+            .collect();
         let x: Vec<Vec<f64>> = rows.iter().map(|&i| s.skin_features(&points, i)).collect();
-        let y: Vec<Vec<f64>> = rows.iter().filter_map(|&i| s.bone_features(&rest, i)).collect();
+        let y: Vec<Vec<f64>> = rows
+            .iter()
+            .filter_map(|&i| s.bone_features(&rest, i))
+            .collect();
         let x = if k == 0 {
             x
         } else {
             let sample = spaced(x.len(), 150);
-            let pairs: Vec<(Vec<f64>, Vec<f64>)> =
-                sample.iter().map(|&i| (x[i].clone(), y[i].clone())).collect();
+            let pairs: Vec<(Vec<f64>, Vec<f64>)> = sample
+                .iter()
+                .map(|&i| (x[i].clone(), y[i].clone()))
+                .collect();
             let (t, report) = align_globally(&single.regressor, &pairs, &settings.retarget);
             reports.push(report);
             x.iter().map(|f| apply(&[t], f)).collect()
@@ -254,9 +291,12 @@ pub fn learn_multi(
     let regressor =
         Regressor::learn(&x, &y, cut, &settings.regress).map_err(|e| regress_error(primary, e))?;
     let names = subjects.iter().map(|s| s.name.clone()).collect();
-    let (rest, _) = primary.rest()?;
+    let (rest, ..) = primary.rest()?;
     let fit = SubjectFit::of(primary, &rest);
-    Ok((model(points, primary, regressor, names, settings, fit), reports))
+    Ok((
+        model(points, primary, regressor, names, settings, fit),
+        reports,
+    ))
 }
 
 /// The model carried to `target` from its calibration poses (and its rest, where the skin is
@@ -266,7 +306,11 @@ pub fn retarget_to(
     target: &Subject,
     settings: &RetargetSettings,
 ) -> Result<(SkinModel, RetargetReport)> {
-    let frames: Vec<usize> = target.calibration_indices()?.into_iter().map(|(_, i)| i).collect();
+    let frames: Vec<usize> = target
+        .calibration_indices()?
+        .into_iter()
+        .map(|(_, i)| i)
+        .collect();
     retarget_on(m, target, &frames, settings)
 }
 
@@ -277,11 +321,14 @@ pub fn retarget_on(
     frames: &[usize],
     settings: &RetargetSettings,
 ) -> Result<(SkinModel, RetargetReport)> {
-    let (rest, _) = target.rest()?;
+    let (rest, ..) = target.rest()?;
     let mut pairs: Vec<(Vec<f64>, Vec<f64>)> = frames
         .iter()
         .filter_map(|&i| {
-            Some((target.skin_features(&m.skin_points, i), target.bone_features(&rest, i)?))
+            Some((
+                target.skin_features(&m.skin_points, i),
+                target.bone_features(&rest, i)?,
+            ))
         })
         .collect();
     pairs.push((vec![0.0; m.skin_points.len() * 3], vec![0.0; 15]));

@@ -126,12 +126,25 @@ fn solve(
     let mut t = vec![FeatureTransform::default(); groups];
     let before = data_cost(phi, pairs, &t);
     if pairs.is_empty() || groups == 0 {
-        return (t, RetargetReport { cost_before: before, cost_after: before, iterations: 0 });
+        return (
+            t,
+            RetargetReport {
+                cost_before: before,
+                cost_after: before,
+                iterations: 0,
+            },
+        );
     }
     let n = 6 * groups;
     // The regularisers' weights per parameter: (ω/2)² and t².
     let reg: Vec<f64> = (0..n)
-        .map(|i| if i % 6 < 3 { s.lambda_rotation * 0.25 } else { s.lambda_translation })
+        .map(|i| {
+            if i % 6 < 3 {
+                s.lambda_rotation * 0.25
+            } else {
+                s.lambda_translation
+            }
+        })
         .collect();
     let mut mu = 1e-3;
     let mut cost = before + regulariser(&t, s);
@@ -143,11 +156,14 @@ fn solve(
             .iter()
             .flat_map(|g| g.rotation.into_iter().chain(g.translation))
             .collect();
-        let grad = jac.transpose() * &res + DVector::from_iterator(n, (0..n).map(|i| reg[i] * x[i]));
+        let grad =
+            jac.transpose() * &res + DVector::from_iterator(n, (0..n).map(|i| reg[i] * x[i]));
         let colnorm: Vec<f64> = (0..n).map(|c| jac.column(c).norm_squared()).collect();
         let mut improved = false;
         for _ in 0..10 {
-            let d: Vec<f64> = (0..n).map(|i| reg[i] + mu * (colnorm[i] + reg[i]).max(1e-12)).collect();
+            let d: Vec<f64> = (0..n)
+                .map(|i| reg[i] + mu * (colnorm[i] + reg[i]).max(1e-12))
+                .collect();
             let Some(step) = damped_solve(&jac, &d, &grad) else {
                 mu *= 10.0;
                 continue;
@@ -178,7 +194,14 @@ fn solve(
         }
     }
     let after = data_cost(phi, pairs, &t);
-    (t, RetargetReport { cost_before: before, cost_after: after, iterations: done })
+    (
+        t,
+        RetargetReport {
+            cost_before: before,
+            cost_after: after,
+            iterations: done,
+        },
+    )
 }
 
 /// (D + JᵀJ)⁻¹ g for a diagonal D: directly when there are fewer parameters than residuals,
@@ -227,7 +250,8 @@ fn jacobian(
             res[row] = value[o] - b[o];
             for v in 0..features {
                 let g = if groups == 1 { 0 } else { v };
-                let grad = Vector3::new(dphi[(o, 3 * v)], dphi[(o, 3 * v + 1)], dphi[(o, 3 * v + 2)]);
+                let grad =
+                    Vector3::new(dphi[(o, 3 * v)], dphi[(o, 3 * v + 1)], dphi[(o, 3 * v + 2)]);
                 // d' = R d + t; a left increment δω turns R d by −[R d]× δω.
                 let rd = mats[g] * Vector3::new(f[3 * v], f[3 * v + 1], f[3 * v + 2]);
                 let dw = -(hat(&rd).transpose() * grad);
@@ -239,4 +263,101 @@ fn jacobian(
         }
     }
     (jac, res)
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::skin::regress::RegressSettings;
+
+    /// A mapping from four skin displacements (12 numbers) to 3 outputs.
+    fn mapping() -> (Regressor, Vec<Vec<f64>>, Vec<Vec<f64>>) {
+        let mut state = 99u64;
+        let mut uniform = move || {
+            state = state
+                .wrapping_mul(6364136223846793005)
+                .wrapping_add(1442695040888963407);
+            (state >> 11) as f64 / (1u64 << 53) as f64 * 2.0 - 1.0
+        };
+        let x: Vec<Vec<f64>> = (0..200)
+            .map(|_| (0..12).map(|_| uniform() * 3.0).collect())
+            .collect();
+        let y: Vec<Vec<f64>> = x
+            .iter()
+            .map(|f| vec![f[0] + f[4], f[1] - f[8], f[2] * 0.5 + f[10]])
+            .collect();
+        let s = RegressSettings {
+            widths: vec![8.0],
+            penalties: vec![30.0],
+            ..RegressSettings::default()
+        };
+        (Regressor::learn(&x, &y, 160, &s).unwrap(), x, y)
+    }
+
+    #[test]
+    fn the_jacobian_matches_finite_differences_of_the_residuals() {
+        let (phi, x, y) = mapping();
+        let pairs: Vec<(Vec<f64>, Vec<f64>)> =
+            (0..3).map(|i| (x[i].clone(), y[i].clone())).collect();
+        let t: Vec<FeatureTransform> = (0..4)
+            .map(|v| FeatureTransform {
+                rotation: [0.0; 3],
+                translation: [0.1 * v as f64, 0.0, -0.2],
+            })
+            .collect();
+        let (jac, res) = jacobian(&phi, &pairs, &t);
+        let h = 1e-6;
+        for g in 0..4 {
+            for k in 0..6 {
+                let bump = |d: f64| {
+                    let mut t2 = t.clone();
+                    if k < 3 {
+                        t2[g].rotation[k] += d
+                    } else {
+                        t2[g].translation[k - 3] += d
+                    }
+                    jacobian(&phi, &pairs, &t2).1
+                };
+                let fd = (bump(h) - bump(-h)) / (2.0 * h);
+                for r in 0..res.len() {
+                    // At zero rotation the left increment and the rotation vector agree.
+                    assert!(
+                        (fd[r] - jac[(r, 6 * g + k)]).abs() < 1e-4 * (1.0 + fd[r].abs()),
+                        "row {r}, group {g}, parameter {k}: {} vs {}",
+                        fd[r],
+                        jac[(r, 6 * g + k)]
+                    );
+                }
+            }
+        }
+    }
+
+    #[test]
+    fn a_subject_whose_skin_moves_turned_is_brought_back() {
+        let (phi, x, y) = mapping();
+        // The target's displacements are the source's turned by 20° about y and shifted.
+        let turn = FeatureTransform {
+            rotation: [0.0, 0.35, 0.0],
+            translation: [0.3, 0.0, 0.0],
+        };
+        let pairs: Vec<(Vec<f64>, Vec<f64>)> = (0..6)
+            .map(|i| {
+                let inv = turn.matrix().transpose();
+                let f: Vec<f64> = (0..4)
+                    .flat_map(|v| {
+                        let d = Vector3::new(x[i][3 * v], x[i][3 * v + 1], x[i][3 * v + 2]);
+                        (inv * (d - Vector3::from(turn.translation)))
+                            .iter()
+                            .copied()
+                            .collect::<Vec<_>>()
+                    })
+                    .collect();
+                (f, y[i].clone())
+            })
+            .collect();
+        let (_, report) = align_globally(&phi, &pairs, &RetargetSettings::default());
+        assert!(report.cost_after < 0.05 * report.cost_before, "{report:?}");
+        let (_, report) = retarget(&phi, &pairs, &RetargetSettings::default());
+        assert!(report.cost_after < 0.05 * report.cost_before, "{report:?}");
+    }
 }

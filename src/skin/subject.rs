@@ -10,8 +10,10 @@ use crate::capture::Mesh;
 use crate::error::{Error, Result};
 use crate::geometry::Pose;
 
-/// The mean skin displacement (mm) below which a frame counts as the neutral: the rest pose
-/// of a subject is the jaw pose of the frame nearest the neutral, and it must be this near.
+/// The mean skin displacement (mm) below which a frame counts as the neutral. The rest pose of
+/// a subject is the jaw pose of the frame nearest the neutral; one farther than this is used
+/// all the same, and the commands say so (the bone features are then measured from a pose
+/// that is not quite the rest).
 pub const REST_MAX_MM: f64 = 1.5;
 
 #[derive(Debug, Clone)]
@@ -58,9 +60,9 @@ impl Subject {
             .filter(|&i| i < self.frames.len())
     }
 
-    /// The rest pose: the jaw pose of the frame whose skin is nearest the neutral (and near
-    /// enough), with that frame.
-    pub fn rest(&self) -> Result<(Pose, u32)> {
+    /// The rest pose: the jaw pose of the frame whose skin is nearest the neutral, that frame,
+    /// and its mean distance from the neutral (mm; see [`REST_MAX_MM`]).
+    pub fn rest(&self) -> Result<(Pose, u32, f64)> {
         let mut best: Option<(f64, usize)> = None;
         for (i, jaw) in self.jaw.iter().enumerate() {
             if jaw.is_none() {
@@ -78,17 +80,22 @@ impl Subject {
                 "no jaw poses: the subject can only be predicted for, with a model made for it (`skin retarget`)",
             ));
         };
-        if d > REST_MAX_MM {
-            return Err(Error::invalid(
-                &self.dir_file(),
-                "jaw",
-                format!(
-                    "no frame with a jaw pose is near the neutral (the nearest, frame {}, is {d:.2} mm from it on average; at most {REST_MAX_MM} mm): give the jaw pose of a frame at rest, mouth closed and relaxed, so that the bone's rest pose is known",
-                    self.frames[i]
-                ),
-            ));
-        }
-        Ok((self.jaw[i].expect("chosen among frames with a pose"), self.frames[i]))
+        Ok((
+            self.jaw[i].expect("chosen among frames with a pose"),
+            self.frames[i],
+            d,
+        ))
+    }
+
+    /// A note for the user when the rest pose comes from a frame far from the neutral.
+    pub fn rest_note(&self) -> Option<String> {
+        let (_, frame, d) = self.rest().ok()?;
+        (d > REST_MAX_MM).then(|| {
+            format!(
+                "{}: the frame with a jaw pose nearest the neutral skin (frame {frame}) is {d:.2} mm from it on average (more than {REST_MAX_MM} mm); its pose is taken as the rest pose. Give jaw.json the pose of a frame at rest (mouth closed, relaxed) for a true one",
+                self.name
+            )
+        })
     }
 
     fn dir_file(&self) -> std::path::PathBuf {
@@ -97,7 +104,12 @@ impl Subject {
 
     /// Skin features of frame index `i` for `points`.
     pub fn skin_features(&self, points: &[SkinPoint], i: usize) -> Vec<f64> {
-        skin_features(points, &self.neutral.triangles, &self.neutral.positions, &self.skin[i])
+        skin_features(
+            points,
+            &self.neutral.triangles,
+            &self.neutral.positions,
+            &self.skin[i],
+        )
     }
 
     /// Bone features of frame index `i` (which must have a jaw pose) from `rest`.
@@ -117,13 +129,16 @@ impl Subject {
         cal.frames()
             .into_iter()
             .map(|(name, f)| {
-                let i = self.index_of(f).filter(|&i| self.jaw[i].is_some()).ok_or_else(|| {
-                    Error::invalid(
-                        &self.dir_file(),
-                        format!("calibration.{name}"),
-                        format!("frame {f} has no jaw pose in jaw.json"),
-                    )
-                })?;
+                let i = self
+                    .index_of(f)
+                    .filter(|&i| self.jaw[i].is_some())
+                    .ok_or_else(|| {
+                        Error::invalid(
+                            &self.dir_file(),
+                            format!("calibration.{name}"),
+                            format!("frame {f} has no jaw pose in jaw.json"),
+                        )
+                    })?;
                 Ok((name, i))
             })
             .collect()

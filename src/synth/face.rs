@@ -110,7 +110,14 @@ pub fn generate_faces(
         for i in 0..opts.subjects {
             let name = format!("s{}", i + 1);
             let subject = FaceSubject::new(opts.seed, i);
-            subjects.push(write_subject(&dir.join(&name), &name, &subject, opts, i, progress)?);
+            subjects.push(write_subject(
+                &dir.join(&name),
+                &name,
+                &subject,
+                opts,
+                i,
+                progress,
+            )?);
         }
         Ok(FaceSynthReport {
             subjects,
@@ -124,7 +131,11 @@ impl FaceSubject {
         let mut rng = ChaCha8Rng::seed_from_u64(seed ^ (0x5eed_face ^ (index as u64) << 32));
         let size = rng.random_range(0.93..1.07);
         let scale = |m: Mesh| Mesh {
-            positions: m.positions.iter().map(|p| p.map(|c| c * size as f32)).collect(),
+            positions: m
+                .positions
+                .iter()
+                .map(|p| p.map(|c| c * size as f32))
+                .collect(),
             ..m
         };
         let (upper, lower) = (scale(procedural_arch(true)), scale(procedural_arch(false)));
@@ -135,7 +146,10 @@ impl FaceSubject {
             JawModel::variant_for_arches(&upper, rest)
         };
         let mandible = super::mandible::mandible_mesh(&lower, &jaw);
-        let bone: Vec<Vector3<f64>> = mandible.points().map(|p| rest.transform_point(&p)).collect();
+        let bone: Vec<Vector3<f64>> = mandible
+            .points()
+            .map(|p| rest.transform_point(&p))
+            .collect();
         let chin_tissue_mm = rng.random_range(8.0..14.0);
         let width_extra = rng.random_range(-4.0..6.0);
         let cheek = rng.random_range(0.9..1.15);
@@ -177,7 +191,13 @@ impl FaceSubject {
 
     /// The skin in a frame: the jaw's motion carried to each vertex by its attachment, less
     /// the sliding, the stretch under the chin, the expressions, and the tracker's noise.
-    fn skin(&self, c: &JawControls, expr: &[f64; 3], rng: &mut ChaCha8Rng, noise: f64) -> Vec<[f32; 3]> {
+    fn skin(
+        &self,
+        c: &JawControls,
+        expr: &[f64; 3],
+        rng: &mut ChaCha8Rng,
+        noise: f64,
+    ) -> Vec<[f32; 3]> {
         let motion = self.jaw.mandible_motion(c);
         let (_, _, angle) = self.jaw.joint_state(c);
         let rho = (angle / self.jaw.max_opening_rad).clamp(0.0, 1.2);
@@ -214,8 +234,15 @@ fn gauss(rng: &mut ChaCha8Rng) -> f64 {
 /// The skin over the lower face at rest: per height an ellipse about a vertical axis at the
 /// condyles, wide enough to clear the ramus and deep enough to clear the chin by the tissue;
 /// under the chin it curls in.
-fn skin_shell(bone: &[Vector3<f64>], jaw: &JawModel, tissue: f64, width_extra: f64, cheek: f64) -> Mesh {
-    let max = |f: &dyn Fn(&Vector3<f64>) -> f64| bone.iter().map(f).fold(f64::NEG_INFINITY, f64::max);
+fn skin_shell(
+    bone: &[Vector3<f64>],
+    jaw: &JawModel,
+    tissue: f64,
+    width_extra: f64,
+    cheek: f64,
+) -> Mesh {
+    let max =
+        |f: &dyn Fn(&Vector3<f64>) -> f64| bone.iter().map(f).fold(f64::NEG_INFINITY, f64::max);
     let zc = (jaw.condyle_left.z + jaw.condyle_right.z) * 0.5;
     let xc = (jaw.condyle_left.x + jaw.condyle_right.x) * 0.5;
     let a = max(&|p| (p.x - xc).abs()) + 12.0 + width_extra;
@@ -249,8 +276,10 @@ fn skin_shell(bone: &[Vector3<f64>], jaw: &JawModel, tissue: f64, width_extra: f
         for k in 0..COLS - 1 {
             let at = |r: usize, k: usize| (r * COLS + k) as u32;
             // Wound so that normals point out of the face.
-            mesh.triangles.push([at(r, k), at(r + 1, k), at(r + 1, k + 1)]);
-            mesh.triangles.push([at(r, k), at(r + 1, k + 1), at(r, k + 1)]);
+            mesh.triangles
+                .push([at(r, k), at(r + 1, k), at(r + 1, k + 1)]);
+            mesh.triangles
+                .push([at(r, k), at(r + 1, k + 1), at(r, k + 1)]);
             mesh.boi.extend([false, false]);
         }
     }
@@ -280,7 +309,13 @@ fn vertex_normals(mesh: &Mesh) -> Vec<Vector3<f64>> {
 
 /// How much each skin vertex follows the mandible: most where the bone is near (the chin and
 /// the jaw line), falling off with the depth of tissue, and nothing above the mouth.
-fn attachment(skin: &Mesh, bone: &[Vector3<f64>], tissue: f64, falloff: f64, follow: f64) -> Vec<f64> {
+fn attachment(
+    skin: &Mesh,
+    bone: &[Vector3<f64>],
+    tissue: f64,
+    falloff: f64,
+    follow: f64,
+) -> Vec<f64> {
     skin.points()
         .map(|s| {
             let d = bone
@@ -300,7 +335,11 @@ fn attachment(skin: &Mesh, bone: &[Vector3<f64>], tissue: f64, falloff: f64, fol
 /// Displacement fields of three expressions that do not move the jaw: a smile (mouth corners
 /// up, back and out), lips pressed (the mentalis lifts the chin's skin and the lower lip), a
 /// pucker (lips forward, the chin's skin a little forward and up).
-fn expression_fields(skin: &Mesh, normals: &[Vector3<f64>], amp: [f64; 3]) -> [Vec<Vector3<f64>>; 3] {
+fn expression_fields(
+    skin: &Mesh,
+    normals: &[Vector3<f64>],
+    amp: [f64; 3],
+) -> [Vec<Vector3<f64>>; 3] {
     let pts: Vec<Vector3<f64>> = skin.points().collect();
     let front = pts.iter().map(|p| p.z).fold(f64::NEG_INFINITY, f64::max);
     let xs = pts.iter().map(|p| p.x).sum::<f64>() / pts.len() as f64;
@@ -344,17 +383,52 @@ fn expression_fields(skin: &Mesh, normals: &[Vector3<f64>], amp: [f64; 3]) -> [V
 fn script(frames: u32, rng: &mut ChaCha8Rng) -> (Vec<(JawControls, [f64; 3])>, CalibrationJson) {
     let calibration_keys: [(u32, JawControls); 12] = [
         (0, JawControls::default()),
-        (20, JawControls { open: 1.0, lateral: 0.0, protrusion: 0.0 }),
+        (
+            20,
+            JawControls {
+                open: 1.0,
+                lateral: 0.0,
+                protrusion: 0.0,
+            },
+        ),
         (40, JawControls::default()),
-        (60, JawControls { open: 0.08, lateral: 1.0, protrusion: 0.0 }),
+        (
+            60,
+            JawControls {
+                open: 0.08,
+                lateral: 1.0,
+                protrusion: 0.0,
+            },
+        ),
         (80, JawControls::default()),
-        (100, JawControls { open: 0.08, lateral: -1.0, protrusion: 0.0 }),
+        (
+            100,
+            JawControls {
+                open: 0.08,
+                lateral: -1.0,
+                protrusion: 0.0,
+            },
+        ),
         (120, JawControls::default()),
-        (140, JawControls { open: 0.03, lateral: 0.0, protrusion: 1.0 }),
+        (
+            140,
+            JawControls {
+                open: 0.03,
+                lateral: 0.0,
+                protrusion: 1.0,
+            },
+        ),
         (160, JawControls::default()),
         // "Backward": the jaw held retruded, the teeth apart (the joint model does not
         // retrude past the rest bite).
-        (180, JawControls { open: 0.15, lateral: 0.0, protrusion: 0.0 }),
+        (
+            180,
+            JawControls {
+                open: 0.15,
+                lateral: 0.0,
+                protrusion: 0.0,
+            },
+        ),
         (195, JawControls::default()),
         (200, JawControls::default()),
     ];
@@ -372,7 +446,14 @@ fn script(frames: u32, rng: &mut ChaCha8Rng) -> (Vec<(JawControls, [f64; 3])>, C
         let open = rng.random_range(0.0f64..1.0).powf(1.6);
         let lateral = rng.random_range(-0.8..0.8) * (1.0 - open * 0.7);
         let protrusion = rng.random_range(0.0f64..0.8).powi(2);
-        jaw_keys.push((t, JawControls { open, lateral, protrusion }));
+        jaw_keys.push((
+            t,
+            JawControls {
+                open,
+                lateral,
+                protrusion,
+            },
+        ));
     }
     let mut expr_keys: [Vec<(u32, f64)>; 3] = Default::default();
     for keys in &mut expr_keys {
@@ -388,12 +469,18 @@ fn script(frames: u32, rng: &mut ChaCha8Rng) -> (Vec<(JawControls, [f64; 3])>, C
     let eased = |keys: &[(u32, f64)], f: u32| -> f64 { ease(keys, f, |a, b, e| a + (b - a) * e) };
     let out = (0..frames)
         .map(|f| {
-            let c = ease(&jaw_keys, f, |a: JawControls, b: JawControls, e| JawControls {
-                open: a.open + (b.open - a.open) * e,
-                lateral: a.lateral + (b.lateral - a.lateral) * e,
-                protrusion: a.protrusion + (b.protrusion - a.protrusion) * e,
+            let c = ease(&jaw_keys, f, |a: JawControls, b: JawControls, e| {
+                JawControls {
+                    open: a.open + (b.open - a.open) * e,
+                    lateral: a.lateral + (b.lateral - a.lateral) * e,
+                    protrusion: a.protrusion + (b.protrusion - a.protrusion) * e,
+                }
             });
-            let e = [eased(&expr_keys[0], f), eased(&expr_keys[1], f), eased(&expr_keys[2], f)];
+            let e = [
+                eased(&expr_keys[0], f),
+                eased(&expr_keys[1], f),
+                eased(&expr_keys[2], f),
+            ];
             (c, e)
         })
         .collect();
@@ -407,7 +494,11 @@ fn ease<T: Copy>(keys: &[(u32, T)], f: u32, lerp: impl Fn(T, T, f64) -> T) -> T 
         return keys[i].1;
     };
     let x = (f - keys[i].0) as f64 / (next.0 - keys[i].0).max(1) as f64;
-    lerp(keys[i].1, next.1, 0.5 - 0.5 * (std::f64::consts::PI * x).cos())
+    lerp(
+        keys[i].1,
+        next.1,
+        0.5 - 0.5 * (std::f64::consts::PI * x).cos(),
+    )
 }
 
 fn write_subject(

@@ -485,7 +485,9 @@ pub fn generate(
     }
     check_out(out, opts.force)?;
     let session = Session::new(opts)?;
-    write_staged(out, |dir| write_capture(dir, &session, opts, progress, started))
+    write_staged(out, |dir| {
+        write_capture(dir, &session, opts, progress, started)
+    })
 }
 
 /// Refuse an existing `out` unless `force`.
