@@ -1,7 +1,8 @@
 //! jawtrack: track the teeth in multi-camera video and learn how the jaw moves
 //! (Yang et al., *Building Anatomically Realistic Jaw Kinematics Model from Data*, 2019).
 //!
-//! Data flows one way: [`capture`] → [`energy`] → track → rig. [`geometry`] is shared;
+//! Data flows one way: [`capture`] → [`energy`] → track → rig; [`skin`] predicts the jaw from
+//! the face surface (Zoss et al. 2019). [`geometry`] is shared;
 //! [`synth`] writes synthetic captures with ground truth.
 
 pub mod anatomy;

@@ -1,9 +1,10 @@
 //! `jawtrack bench`: the figures for performance engineers and the README's tables: the
 //! energy's evaluations per second (`energy`), tracking against the energy's floor (`track`),
-//! the rigs' figures (`rig`).
+//! the rigs' figures (`rig`), the jaw from the skin (`skin`).
 
 mod energy;
 mod rig;
+mod skin;
 mod track;
 
 #[derive(clap::Subcommand)]
@@ -17,6 +18,9 @@ pub enum Command {
     /// Learn a rig from synthetic TMJ motion and report the paper's figures, learning time and
     /// IK speed.
     Rig(rig::RigArgs),
+    /// The jaw from the skin on a long synthetic subject: learning time, prediction time,
+    /// single-subject accuracy on later frames.
+    Skin(skin::SkinArgs),
 }
 
 pub fn run(c: Command) -> anyhow::Result<()> {
@@ -24,5 +28,6 @@ pub fn run(c: Command) -> anyhow::Result<()> {
         Command::Energy(a) => energy::energy(a),
         Command::Track(a) => track::track(a),
         Command::Rig(a) => rig::rig(a),
+        Command::Skin(a) => skin::skin(a),
     }
 }
