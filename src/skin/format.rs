@@ -213,7 +213,7 @@ impl FaceSequence {
     pub fn jaw_pose(&self, frame: u32) -> Result<Pose> {
         self.jaw.get(&frame).copied().ok_or_else(|| {
             Error::invalid(
-                &self.dir.join("face.json"),
+                self.dir.join("face.json"),
                 "jaw",
                 format!("no jaw pose for frame {frame} (jaw.json lists the frames it knows)"),
             )

@@ -16,6 +16,9 @@ use crate::capture::json::PoseJson;
 use crate::error::{Error, Result};
 use crate::geometry::Pose;
 
+/// A subject's rows of skin features and of bone features.
+type FramesXY = (Vec<Vec<f64>>, Vec<Vec<f64>>);
+
 pub const MODEL_FORMAT: &str = "jawtrack-skin-model/1";
 
 /// Everything learning and retargeting can be told (`--settings FILE`, JSON; absent fields
@@ -124,7 +127,8 @@ impl SkinModel {
             || r.support.iter().any(|s| s.len() != r.basis.len())
             || r.outputs.len() != 15
             || r.outputs.iter().any(|o| o.alpha.len() != r.support.len())
-            || !(r.width > 0.0);
+            || r.width.is_nan()
+            || r.width <= 0.0;
         if bad {
             return Err(Error::invalid(
                 path,
@@ -158,7 +162,7 @@ fn model(
 
 fn regress_error(s: &Subject, e: impl std::fmt::Display) -> Error {
     Error::invalid(
-        &std::path::PathBuf::from(&s.name).join("face.json"),
+        std::path::PathBuf::from(&s.name).join("face.json"),
         "frames",
         format!("cannot learn a mapping: {e}"),
     )
@@ -244,7 +248,8 @@ pub fn learn_multi(
             &learned
         }
     };
-    let mut parts: Vec<(Vec<Vec<f64>>, Vec<Vec<f64>>)> = Vec::new();
+    // Per subject: its skin features (aligned) and bone features, frame by frame.
+    let mut parts: Vec<FramesXY> = Vec::new();
     let mut reports = Vec::new();
     for (k, s) in subjects.iter().enumerate() {
         let (rest, ..) = s.rest()?;

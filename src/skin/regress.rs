@@ -267,7 +267,7 @@ fn principal_components(
     let total: f64 = values.iter().sum();
     // Variance at the level of the mean's rounding is none.
     let scale: f64 = x.iter().flatten().map(|v| v * v).sum();
-    if !(total > 1e-20 * scale) {
+    if total.is_nan() || total <= 1e-20 * scale {
         return Err(RegressError::NoVariance);
     }
     let mut keep = 0;

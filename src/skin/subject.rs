@@ -75,7 +75,7 @@ impl Subject {
         }
         let Some((d, i)) = best else {
             return Err(Error::invalid(
-                &self.dir_file(),
+                self.dir_file(),
                 "jaw",
                 "no jaw poses: the subject can only be predicted for, with a model made for it (`skin retarget`)",
             ));
@@ -121,7 +121,7 @@ impl Subject {
     pub fn calibration_indices(&self) -> Result<Vec<(&'static str, usize)>> {
         let cal = self.calibration.ok_or_else(|| {
             Error::invalid(
-                &self.dir_file(),
+                self.dir_file(),
                 "calibration",
                 "missing: retargeting to a subject needs the frames of its five calibration poses",
             )
@@ -134,7 +134,7 @@ impl Subject {
                     .filter(|&i| self.jaw[i].is_some())
                     .ok_or_else(|| {
                         Error::invalid(
-                            &self.dir_file(),
+                            self.dir_file(),
                             format!("calibration.{name}"),
                             format!("frame {f} has no jaw pose in jaw.json"),
                         )

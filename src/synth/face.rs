@@ -140,7 +140,7 @@ impl FaceSubject {
         };
         let (upper, lower) = (scale(procedural_arch(true)), scale(procedural_arch(false)));
         let rest = rest_bite(&upper, &lower);
-        let jaw = if index % 2 == 0 {
+        let jaw = if index.is_multiple_of(2) {
             JawModel::for_arches(&upper, rest)
         } else {
             JawModel::variant_for_arches(&upper, rest)

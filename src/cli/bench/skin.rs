@@ -25,7 +25,12 @@ pub struct SkinArgs {
 pub fn skin(a: SkinArgs) -> anyhow::Result<()> {
     let tmp = tempfile::tempdir()?;
     let dir = tmp.path().join("faces");
-    let opts = FaceSynthOptions { subjects: 1, frames: a.frames, seed: a.seed, ..FaceSynthOptions::default() };
+    let opts = FaceSynthOptions {
+        subjects: 1,
+        frames: a.frames,
+        seed: a.seed,
+        ..FaceSynthOptions::default()
+    };
     generate_faces(&dir, &opts, &|| {})?;
     let settings = SkinSettings::default();
     let clock = Instant::now();
@@ -47,7 +52,13 @@ pub fn skin(a: SkinArgs) -> anyhow::Result<()> {
     let errors: Vec<f64> = all[cut..]
         .iter()
         .zip(&poses)
-        .map(|(&i, p)| vertex_error(&s.mandible, p, &s.jaw[i].expect("synthetic subjects have every pose")))
+        .map(|(&i, p)| {
+            vertex_error(
+                &s.mandible,
+                p,
+                &s.jaw[i].expect("synthetic subjects have every pose"),
+            )
+        })
         .collect();
     let st = Stats::of(&errors);
     if a.json {
@@ -58,11 +69,17 @@ pub fn skin(a: SkinArgs) -> anyhow::Result<()> {
         );
         return Ok(());
     }
-    println!("one synthetic subject of {} frames (seed {}):", a.frames, a.seed);
+    println!(
+        "one synthetic subject of {} frames (seed {}):",
+        a.frames, a.seed
+    );
     println!("  learning on every frame: {learn_s:.1} s (reading the frames {read_s:.1} s of it)");
     println!(
         "  learned on the first {cut}, tested on the last {}: mean {:.3}, median {:.3}, p95 {:.3} mm over the mandible's vertices",
-        errors.len(), st.mean, st.median, st.p95
+        errors.len(),
+        st.mean,
+        st.median,
+        st.p95
     );
     println!("  prediction (features, mapping, rigid fit): {predict_ms:.3} ms a frame");
     Ok(())
