@@ -310,3 +310,42 @@ fn frames_the_teeth_tracker_misses_are_filled_from_the_skin() {
     eprintln!("filled frames: mean {mean} mm, {errors:?}");
     assert!(mean < 1.5, "mean error of the filled frames: {mean} mm");
 }
+
+#[test]
+fn a_set_written_by_another_program_is_read_and_predicted() {
+    // fixtures/face-python/make.py: Python's standard library, its own mandible, skin model and
+    // motion; OBJ frames numbered from 1000, jaw poses out of order, a field of its own.
+    let tmp = tempfile::tempdir().unwrap();
+    let out = tmp.path().join("set");
+    let script = Path::new(env!("CARGO_MANIFEST_DIR")).join("fixtures/face-python/make.py");
+    let status = std::process::Command::new("python3")
+        .arg(&script)
+        .arg(&out)
+        .args(["3", "200"])
+        .status()
+        .expect("python3 runs the fixture's writer (install python3)");
+    assert!(status.success());
+    let subjects: Vec<Subject> = jawtrack::skin::format::subject_dirs(&out)
+        .unwrap()
+        .iter()
+        .map(|(name, dir)| {
+            let seq = FaceSequence::open(dir).unwrap();
+            assert_eq!(seq.first, 1000);
+            assert_eq!(seq.unknown_fields, vec!["writer".to_string()]);
+            Subject::load(&seq, name, &|| {}).unwrap()
+        })
+        .collect();
+    assert_eq!(subjects.len(), 3);
+    let e = evaluate(&subjects, &quick(), &|_| {}).unwrap();
+    for s in &e.subjects {
+        assert!(s.baseline_mm > 3.0, "{}: {}", s.name, s.baseline_mm);
+        assert!(
+            s.multi_subject_mm < s.baseline_mm / 3.0,
+            "{}: {} vs {}",
+            s.name,
+            s.multi_subject_mm,
+            s.baseline_mm
+        );
+        assert!(s.single_mm < 2.0, "{}: {}", s.name, s.single_mm);
+    }
+}
