@@ -172,6 +172,16 @@ pub fn run(c: Command) -> anyhow::Result<()> {
                 "retargeted to {} from its calibration poses: Σ|Φ − B|² {:.3} → {:.3} mm² in {} steps",
                 target.name, report.cost_before, report.cost_after, report.iterations
             );
+            if !report.cross_validated_mm.is_empty() {
+                println!(
+                    "cross-validated on the calibration poses (λ x {:?}, then none): {:?} mm; chose {}",
+                    jawtrack::skin::retarget::LAMBDA_SCALES,
+                    report.cross_validated_mm,
+                    report
+                        .lambda_scale
+                        .map_or("no retargeting".to_string(), |k| format!("λ x {k}"))
+                );
+            }
             println!("wrote {}", out.display());
         }
         Command::Predict { model, face, out } => {

@@ -9,7 +9,7 @@ use serde::{Deserialize, Serialize};
 use super::features::{FeatureSettings, SkinPoint, choose_skin_points};
 use super::regress::{RegressSettings, Regressor};
 use super::retarget::{
-    FeatureTransform, RetargetReport, RetargetSettings, align_globally, apply, retarget,
+    FeatureTransform, RetargetReport, RetargetSettings, align_globally, apply, retarget_chosen,
 };
 use super::subject::{Subject, jaw_from_bone};
 use crate::capture::json::PoseJson;
@@ -337,7 +337,7 @@ pub fn retarget_on(
         })
         .collect();
     pairs.push((vec![0.0; m.skin_points.len() * 3], vec![0.0; 15]));
-    let (transforms, report) = retarget(&m.regressor, &pairs, settings);
+    let (transforms, report) = retarget_chosen(&m.regressor, &pairs, settings);
     let mut out = m.clone();
     out.subject = SubjectFit {
         transforms,

@@ -23,7 +23,15 @@ pub struct RetargetSettings {
     pub lambda_translation: f64,
     /// Levenberg-Marquardt iterations at most.
     pub iterations: usize,
+    /// Beyond the paper, off by default: choose the regularisers' strength (λ1 and λ2 times
+    /// each of [`LAMBDA_SCALES`], or no retargeting at all) by leaving each calibration pose
+    /// out in turn. Five poses make a poor estimate (a pose left out is an extreme the others
+    /// do not cover); docs/skin.md has what it does on two sets.
+    pub cross_validate: bool,
 }
+
+/// The multiples of λ1 and λ2 that cross-validation tries, before no retargeting at all.
+pub const LAMBDA_SCALES: [f64; 3] = [1.0, 1e2, 1e4];
 
 impl Default for RetargetSettings {
     fn default() -> Self {
@@ -31,6 +39,7 @@ impl Default for RetargetSettings {
             lambda_rotation: 1e-5,
             lambda_translation: 2.5e-5,
             iterations: 50,
+            cross_validate: false,
         }
     }
 }
@@ -65,12 +74,77 @@ pub fn apply(transforms: &[FeatureTransform], f: &[f64]) -> Vec<f64> {
     out
 }
 
-/// What the solve reached: the data term Σ|Φ − B|² before and after (mm²), and the steps.
-#[derive(Debug, Clone, Copy, Serialize)]
+/// What the solve reached: the data term Σ|Φ − B|² before and after (mm²), and the steps;
+/// with cross-validation, the multiple of λ1 and λ2 chosen (none: no retargeting) and each
+/// candidate's mean bone point error (mm) on the poses left out.
+#[derive(Debug, Clone, Default, Serialize)]
 pub struct RetargetReport {
     pub cost_before: f64,
     pub cost_after: f64,
     pub iterations: usize,
+    pub lambda_scale: Option<f64>,
+    pub cross_validated_mm: Vec<f64>,
+}
+
+/// Retarget with the regularisers' strength chosen by leave-one-out over the calibration
+/// pairs (all but the last, the rest pose, which always stays in), when the settings ask.
+pub fn retarget_chosen(
+    phi: &Regressor,
+    pairs: &[(Vec<f64>, Vec<f64>)],
+    s: &RetargetSettings,
+) -> (Vec<FeatureTransform>, RetargetReport) {
+    if !s.cross_validate || pairs.len() < 3 || s.iterations == 0 {
+        return retarget(phi, pairs, s);
+    }
+    let scaled = |k: f64| RetargetSettings {
+        lambda_rotation: s.lambda_rotation * k,
+        lambda_translation: s.lambda_translation * k,
+        ..*s
+    };
+    let held = pairs.len() - 1;
+    let error = |t: &[FeatureTransform], (f, b): &(Vec<f64>, Vec<f64>)| {
+        super::regress::point_errors(&phi.predict(&apply(t, f)), b)
+    };
+    let mut scores = Vec::new();
+    for k in LAMBDA_SCALES {
+        let mut e = 0.0;
+        for out in 0..held {
+            let rest: Vec<(Vec<f64>, Vec<f64>)> = pairs
+                .iter()
+                .enumerate()
+                .filter(|(i, _)| *i != out)
+                .map(|(_, p)| p.clone())
+                .collect();
+            let (t, _) = retarget(phi, &rest, &scaled(k));
+            e += error(&t, &pairs[out]);
+        }
+        scores.push(e / held as f64);
+    }
+    let none = (0..held).map(|i| error(&[], &pairs[i])).sum::<f64>() / held as f64;
+    scores.push(none);
+    let best = (0..scores.len())
+        .min_by(|&a, &b| scores[a].total_cmp(&scores[b]))
+        .expect("candidates");
+    let (t, mut report) = match LAMBDA_SCALES.get(best) {
+        Some(&k) => {
+            let (t, mut r) = retarget(phi, pairs, &scaled(k));
+            r.lambda_scale = Some(k);
+            (t, r)
+        }
+        None => {
+            let c = data_cost(phi, pairs, &[]);
+            (
+                Vec::new(),
+                RetargetReport {
+                    cost_before: c,
+                    cost_after: c,
+                    ..Default::default()
+                },
+            )
+        }
+    };
+    report.cross_validated_mm = scores;
+    (t, report)
 }
 
 /// One transform per skin feature from `(skin features, bone features)` calibration pairs.
@@ -131,7 +205,7 @@ fn solve(
             RetargetReport {
                 cost_before: before,
                 cost_after: before,
-                iterations: 0,
+                ..Default::default()
             },
         );
     }
@@ -200,6 +274,8 @@ fn solve(
             cost_before: before,
             cost_after: after,
             iterations: done,
+            lambda_scale: Some(1.0),
+            cross_validated_mm: Vec::new(),
         },
     )
 }
