@@ -435,5 +435,18 @@ mod tests {
         assert!(report.cost_after < 0.05 * report.cost_before, "{report:?}");
         let (_, report) = retarget(&phi, &pairs, &RetargetSettings::default());
         assert!(report.cost_after < 0.05 * report.cost_before, "{report:?}");
+        // Cross-validation scores every candidate and, the turn being real, retargets.
+        let cv = RetargetSettings {
+            cross_validate: true,
+            ..RetargetSettings::default()
+        };
+        let (t, report) = retarget_chosen(&phi, &pairs, &cv);
+        assert_eq!(report.cross_validated_mm.len(), LAMBDA_SCALES.len() + 1);
+        assert!(report.lambda_scale.is_some() && !t.is_empty(), "{report:?}");
+        let none = report.cross_validated_mm[LAMBDA_SCALES.len()];
+        assert!(
+            report.cross_validated_mm.iter().take(3).any(|&e| e < none),
+            "{report:?}"
+        );
     }
 }
