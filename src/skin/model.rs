@@ -136,6 +136,45 @@ impl SkinModel {
                 "its sizes do not agree with one another (a damaged or hand-edited model)",
             ));
         }
+        let numbers = r
+            .mean
+            .iter()
+            .chain(r.basis.iter().flatten())
+            .chain(r.support.iter().flatten())
+            .chain(
+                r.outputs
+                    .iter()
+                    .flat_map(|o| o.alpha.iter().chain([&o.rho, &o.mean, &o.scale])),
+            )
+            .chain(m.skin_points.iter().flat_map(|p| p.barycentric.iter()))
+            .chain(m.subject.bone_points.iter().flatten())
+            .chain(
+                m.subject
+                    .transforms
+                    .iter()
+                    .flat_map(|t| t.rotation.iter().chain(&t.translation)),
+            );
+        if numbers.into_iter().any(|v| !v.is_finite()) {
+            return Err(Error::invalid(
+                path,
+                "regressor",
+                "holds a number that is not finite (a damaged or hand-edited model)",
+            ));
+        }
+        let n = m.skin_points.len();
+        if !m.subject.transforms.is_empty()
+            && m.subject.transforms.len() != 1
+            && m.subject.transforms.len() != n
+        {
+            return Err(Error::invalid(
+                path,
+                "subject.transforms",
+                format!(
+                    "{} transforms for {n} skin points (one each, or one for all)",
+                    m.subject.transforms.len()
+                ),
+            ));
+        }
         Ok(m)
     }
 }
