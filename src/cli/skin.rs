@@ -114,6 +114,14 @@ fn load(dir: &Path) -> anyhow::Result<Subject> {
     Ok(s)
 }
 
+/// A model and a face sequence it can read (the same topology).
+fn model_and_face(model: &Path, face: &Path) -> anyhow::Result<(SkinModel, Subject)> {
+    let m = SkinModel::read(model)?;
+    let s = load(face)?;
+    m.check_topology(&s, &face.join("face.json"))?;
+    Ok((m, s))
+}
+
 pub fn run(c: Command) -> anyhow::Result<()> {
     match c {
         Command::Learn {
@@ -163,9 +171,7 @@ pub fn run(c: Command) -> anyhow::Result<()> {
         } => {
             let settings = settings.read()?;
             jawtrack::capture::check_replaceable(&out)?;
-            let m = SkinModel::read(&model)?;
-            let target = load(&face)?;
-            m.check_topology(&target, &face.join("face.json"))?;
+            let (m, target) = model_and_face(&model, &face)?;
             let (r, report) = retarget_to(&m, &target, &settings.retarget)?;
             write_json_atomic(&out, &r)?;
             println!(
@@ -186,9 +192,7 @@ pub fn run(c: Command) -> anyhow::Result<()> {
         }
         Command::Predict { model, face, out } => {
             jawtrack::capture::check_replaceable(&out)?;
-            let m = SkinModel::read(&model)?;
-            let s = load(&face)?;
-            m.check_topology(&s, &face.join("face.json"))?;
+            let (m, s) = model_and_face(&model, &face)?;
             let clock = Instant::now();
             let poses: Vec<_> = (0..s.frames.len())
                 .map(|i| m.predict(&s.skin_features(&m.skin_points, i)))
@@ -238,9 +242,7 @@ pub fn run(c: Command) -> anyhow::Result<()> {
         } => {
             let settings = settings.read()?;
             jawtrack::capture::check_replaceable(&out)?;
-            let m = SkinModel::read(&model)?;
-            let s = load(&face)?;
-            m.check_topology(&s, &face.join("face.json"))?;
+            let (m, s) = model_and_face(&model, &face)?;
             let t: jawtrack::capture::json::TracksJson =
                 jawtrack::capture::json::read_json(&tracks, "tracks")?;
             let (filled, r) = jawtrack::skin::fill::fill(&m, &s, &t, &tracks, &settings.retarget)?;

@@ -244,26 +244,16 @@ fn surface_samples(mandible: &Mesh, rest: &Pose) -> (Vec<Vector3<f64>>, Vec<Vect
     )
 }
 
-/// Area-weighted vertex normals, pointing out of a closed mesh (by its signed volume).
+/// Vertex normals pointing out of a closed mesh (by its signed volume).
 fn vertex_normals(mesh: &Mesh) -> Vec<Vector3<f64>> {
-    let mut n = vec![Vector3::zeros(); mesh.positions.len()];
-    for t in &mesh.triangles {
-        let [a, b, c] = t.map(|i| mesh.point(i as usize));
-        let face = (b - a).cross(&(c - a));
-        for &i in t {
-            n[i as usize] += face;
-        }
-    }
     let sign = if mesh.signed_volume() < 0.0 {
         -1.0
     } else {
         1.0
     };
-    n.into_iter()
-        .map(|v| {
-            v.try_normalize(1e-12)
-                .map_or(Vector3::zeros(), |u| u * sign)
-        })
+    mesh.vertex_normals()
+        .into_iter()
+        .map(|n| n * sign)
         .collect()
 }
 

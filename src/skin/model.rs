@@ -226,16 +226,7 @@ pub fn learn_single(
         Some(p) => p,
         None => skin_points(s, settings)?,
     };
-    let rows: Vec<usize> = frames
-        .iter()
-        .copied()
-        .filter(|&i| s.jaw[i].is_some())
-        .collect();
-    let x: Vec<Vec<f64>> = rows.iter().map(|&i| s.skin_features(&points, i)).collect();
-    let y: Vec<Vec<f64>> = rows
-        .iter()
-        .filter_map(|&i| s.bone_features(&rest, i))
-        .collect();
+    let (x, y) = training_rows(s, &points, &rest, frames);
     let cut = held_out_cut(x.len(), settings.regress.held_out);
     let regressor =
         Regressor::learn(&x, &y, cut, &settings.regress).map_err(|e| regress_error(s, e))?;
@@ -247,6 +238,14 @@ pub fn learn_single(
         settings,
         SubjectFit::of(s, &rest),
     ))
+}
+
+/// Skin and bone features of those of frame indices `frames` that have a jaw pose.
+fn training_rows(s: &Subject, points: &[SkinPoint], rest: &Pose, frames: &[usize]) -> FramesXY {
+    frames
+        .iter()
+        .filter_map(|&i| Some((s.skin_features(points, i), s.bone_features(rest, i)?)))
+        .unzip()
 }
 
 fn held_out_cut(n: usize, share: f64) -> usize {
@@ -292,14 +291,8 @@ pub fn learn_multi(
     let mut reports = Vec::new();
     for (k, s) in subjects.iter().enumerate() {
         let (rest, ..) = s.rest()?;
-        let rows: Vec<usize> = (0..s.frames.len())
-            .filter(|&i| s.jaw[i].is_some())
-            .collect();
-        let x: Vec<Vec<f64>> = rows.iter().map(|&i| s.skin_features(&points, i)).collect();
-        let y: Vec<Vec<f64>> = rows
-            .iter()
-            .filter_map(|&i| s.bone_features(&rest, i))
-            .collect();
+        let every: Vec<usize> = (0..s.frames.len()).collect();
+        let (x, y) = training_rows(s, &points, &rest, &every);
         let x = if k == 0 {
             x
         } else {

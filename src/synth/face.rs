@@ -286,21 +286,13 @@ fn skin_shell(
     mesh
 }
 
+/// Vertex normals pointing away from the face's vertical axis, whichever way the grid winds.
 fn vertex_normals(mesh: &Mesh) -> Vec<Vector3<f64>> {
-    let mut n = vec![Vector3::zeros(); mesh.positions.len()];
-    for t in &mesh.triangles {
-        let [a, b, c] = t.map(|i| mesh.point(i as usize));
-        let f = (b - a).cross(&(c - a));
-        for &i in t {
-            n[i as usize] += f;
-        }
-    }
-    // Point away from the face's vertical axis, whichever way the grid winds.
     let centre = mesh.points().sum::<Vector3<f64>>() / mesh.positions.len() as f64;
-    n.into_iter()
+    mesh.vertex_normals()
+        .into_iter()
         .zip(mesh.points())
-        .map(|(v, p)| {
-            let u = v.try_normalize(1e-12).unwrap_or(Vector3::z());
+        .map(|(u, p)| {
             let out = Vector3::new(p.x - centre.x, 0.0, p.z - centre.z);
             if u.dot(&out) < 0.0 { -u } else { u }
         })

@@ -75,26 +75,38 @@ pub(crate) struct RawMesh {
     pub tags: Vec<String>,
 }
 
+/// The file read by its extension's reader, and the extension (lower case). STL, which keeps
+/// no vertex order, only where `stl` allows it.
+fn read_raw(path: &Path, stl: bool) -> Result<(RawMesh, String)> {
+    let ext = path
+        .extension()
+        .and_then(|e| e.to_str())
+        .map(str::to_ascii_lowercase)
+        .unwrap_or_default();
+    let raw = match ext.as_str() {
+        "obj" => obj::read_obj(path)?,
+        "stl" if stl => stl::read_stl(path)?,
+        "ply" => ply::read_ply(path)?,
+        _ => {
+            let expected = if stl {
+                ".obj, .stl or .ply"
+            } else {
+                ".obj or .ply"
+            };
+            return Err(Error::invalid(
+                path,
+                "extension",
+                format!("unsupported mesh format `.{ext}` (expected {expected})"),
+            ));
+        }
+    };
+    Ok((raw, ext))
+}
+
 impl Mesh {
     /// Load an OBJ, STL (binary or ASCII) or PLY file, chosen by extension, and validate it.
     pub fn load(path: &Path, boi: BoiSource) -> Result<Mesh> {
-        let ext = path
-            .extension()
-            .and_then(|e| e.to_str())
-            .map(str::to_ascii_lowercase)
-            .unwrap_or_default();
-        let raw = match ext.as_str() {
-            "obj" => obj::read_obj(path)?,
-            "stl" => stl::read_stl(path)?,
-            "ply" => ply::read_ply(path)?,
-            _ => {
-                return Err(Error::invalid(
-                    path,
-                    "extension",
-                    format!("unsupported mesh format `.{ext}` (expected .obj, .stl or .ply)"),
-                ));
-            }
-        };
+        let (raw, ext) = read_raw(path, true)?;
         // Before the boundary of interest is looked for: an empty file is not "a mesh without
         // the group".
         if raw.triangles.is_empty() {
@@ -160,22 +172,7 @@ impl Mesh {
     /// The vertices alone of an OBJ or PLY file (faces, if any, are not needed): a frame of a
     /// face sequence, whose topology is its neutral mesh's.
     pub fn load_vertices(path: &Path) -> Result<Vec<[f32; 3]>> {
-        let ext = path
-            .extension()
-            .and_then(|e| e.to_str())
-            .map(str::to_ascii_lowercase)
-            .unwrap_or_default();
-        let raw = match ext.as_str() {
-            "obj" => obj::read_obj(path)?,
-            "ply" => ply::read_ply(path)?,
-            _ => {
-                return Err(Error::invalid(
-                    path,
-                    "extension",
-                    format!("unsupported mesh format `.{ext}` (expected .obj or .ply)"),
-                ));
-            }
-        };
+        let (raw, _) = read_raw(path, false)?;
         if let Some(i) = raw
             .positions
             .iter()
@@ -188,6 +185,22 @@ impl Mesh {
             ));
         }
         Ok(raw.positions)
+    }
+
+    /// Area-weighted vertex normals, unit length (zero where a vertex has no area), oriented
+    /// as the triangles wind: a caller that knows the inside orients them.
+    pub fn vertex_normals(&self) -> Vec<nalgebra::Vector3<f64>> {
+        let mut n = vec![nalgebra::Vector3::zeros(); self.positions.len()];
+        for t in &self.triangles {
+            let [a, b, c] = t.map(|i| self.point(i as usize));
+            let face = (b - a).cross(&(c - a));
+            for &i in t {
+                n[i as usize] += face;
+            }
+        }
+        n.into_iter()
+            .map(|v| v.try_normalize(1e-12).unwrap_or_default())
+            .collect()
     }
 
     /// Check the invariants every consumer relies on.
