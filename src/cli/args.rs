@@ -292,6 +292,19 @@ pub fn parse_frames(s: &str, capture: &Capture) -> anyhow::Result<Range<u32>> {
     Ok(start..end)
 }
 
+/// A window of file frames, `A..B` (B excluded), for commands that run before a capture.json.
+pub fn frame_window(s: &str) -> Result<Range<u32>, String> {
+    let (a, b) = s
+        .split_once("..")
+        .ok_or_else(|| format!("{s:?}: expected A..B"))?;
+    let num = |x: &str| x.trim().parse::<u32>().map_err(|e| format!("{x:?}: {e}"));
+    let (a, b) = (num(a)?, num(b)?);
+    if a >= b {
+        return Err(format!("{s:?}: the window is empty"));
+    }
+    Ok(a..b)
+}
+
 pub fn parse_vec3(s: &str) -> Result<[f64; 3], String> {
     let v: Vec<f64> = s
         .split(',')

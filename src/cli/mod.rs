@@ -6,12 +6,14 @@ mod bench;
 mod demo;
 mod energy;
 mod envelope;
+mod import;
 mod mesh;
 mod report;
 mod rig;
 mod run;
 mod score;
 mod skin;
+mod sync;
 mod synth;
 mod track;
 mod validate;
@@ -34,6 +36,11 @@ enum Command {
     Demo(demo::Args),
     /// Write a synthetic capture with ground truth.
     Synth(synth::Args),
+    /// Bring footage into a capture: cameras from calibration tools, frames from videos.
+    #[command(subcommand)]
+    Import(import::Command),
+    /// Per-camera frame offsets from a light switched off and on, into frames.offsets.
+    Sync(sync::Args),
     /// Check a capture and print a summary, or what is wrong.
     Validate(validate::Args),
     /// Track both arches through a capture and write tracks.json.
@@ -64,6 +71,8 @@ pub fn main() -> ExitCode {
     let result = match cli.command {
         Command::Demo(a) => demo::run(a),
         Command::Synth(a) => synth::run(a),
+        Command::Import(c) => import::run(c),
+        Command::Sync(a) => sync::run(a),
         Command::Validate(a) => validate::run(a),
         Command::Track(a) => track::run(a),
         Command::Score(a) => score::run(a),

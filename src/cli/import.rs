@@ -1,0 +1,196 @@
+//! `jawtrack import`: calibration files and videos into a capture folder.
+
+use std::path::{Path, PathBuf};
+
+use anyhow::{Context, bail};
+use jawtrack::footage::calib::{self, ImportOptions, ImportedCamera, Unit};
+use jawtrack::footage::video::{self, Extract, FrameFormat};
+
+#[derive(clap::Subcommand)]
+pub enum Command {
+    /// Cameras from OpenCV FileStorage (YAML/XML) files or a COLMAP text model, written as
+    /// CAPTURE/cameras/<name>.json.
+    Cameras(CamerasArgs),
+    /// Frames of videos (anything ffmpeg reads) as CAPTURE/images/<NAME>/<frame:06>.png.
+    Video(VideoArgs),
+}
+
+#[derive(Clone, Copy, clap::ValueEnum)]
+pub enum UnitArg {
+    Mm,
+    Cm,
+    M,
+}
+
+#[derive(clap::Args)]
+pub struct CamerasArgs {
+    /// The capture folder (created if absent).
+    pub capture: PathBuf,
+    /// `[NAME=]FILE`: an OpenCV .yml/.yaml/.xml file per camera (named by the file's stem
+    /// unless NAME= is given), or a COLMAP model folder, cameras.txt or images.txt (cameras
+    /// named by their images: `cam0/000000.png` is camera cam0).
+    #[arg(required = true)]
+    pub files: Vec<String>,
+    /// The unit of the files' translations.
+    #[arg(long, value_enum, default_value = "mm")]
+    pub unit: UnitArg,
+    /// The files' extrinsics are camera-to-world (a camera's pose), not OpenCV's and COLMAP's
+    /// world-to-camera.
+    #[arg(long)]
+    pub camera_to_world: bool,
+}
+
+#[derive(clap::Args)]
+pub struct VideoArgs {
+    /// The capture folder (created if absent).
+    pub capture: PathBuf,
+    /// `NAME=FILE`: the camera's name and its video.
+    #[arg(required = true)]
+    pub videos: Vec<String>,
+    /// The first frame to write (the video's frame number, from 0); files keep that number.
+    #[arg(long, default_value_t = 0)]
+    pub first: u64,
+    /// How many frames to write (all to the end when absent).
+    #[arg(long, value_parser = crate::cli::args::count_in(1, 100_000_000))]
+    pub count: Option<usize>,
+    /// Write JPEG (about a tenth of PNG's size) instead of PNG.
+    #[arg(long)]
+    pub jpg: bool,
+    /// Replace existing images/<NAME>/ folders.
+    #[arg(long)]
+    pub replace: bool,
+}
+
+pub fn run(c: Command) -> anyhow::Result<()> {
+    match c {
+        Command::Cameras(a) => cameras(a),
+        Command::Video(a) => videos(a),
+    }
+}
+
+fn split_named(arg: &str) -> (Option<&str>, &Path) {
+    match arg.split_once('=') {
+        Some((name, file)) if !name.contains('/') && !name.is_empty() => {
+            (Some(name), Path::new(file))
+        }
+        _ => (None, Path::new(arg)),
+    }
+}
+
+fn is_colmap(path: &Path) -> bool {
+    path.is_dir()
+        || matches!(
+            path.file_name().and_then(|n| n.to_str()),
+            Some("cameras.txt" | "images.txt")
+        )
+}
+
+fn cameras(a: CamerasArgs) -> anyhow::Result<()> {
+    let options = ImportOptions {
+        unit: match a.unit {
+            UnitArg::Mm => Unit::Mm,
+            UnitArg::Cm => Unit::Cm,
+            UnitArg::M => Unit::M,
+        },
+        camera_to_world: a.camera_to_world,
+    };
+    let mut cams: Vec<ImportedCamera> = Vec::new();
+    for arg in &a.files {
+        let (name, file) = split_named(arg);
+        if is_colmap(file) {
+            if name.is_some() {
+                bail!("{arg}: a COLMAP model names its cameras by their images; drop the NAME=");
+            }
+            cams.extend(calib::read_colmap(file, &options)?);
+        } else {
+            let stem = file
+                .file_stem()
+                .map(|s| s.to_string_lossy().into_owned())
+                .unwrap_or_default();
+            let name = name.map(str::to_string).unwrap_or(stem);
+            cams.push(calib::read_opencv(file, &name, &options)?);
+        }
+    }
+    let written = calib::write_cameras(&a.capture, &cams).context("writing the cameras")?;
+    for (c, path) in cams.iter().zip(&written) {
+        let (o, d) = (c.centre(), c.view_direction());
+        println!(
+            "{} -> {}: {}x{}, f = ({:.1}, {:.1}) px, centre ({:.1}, {:.1}, {:.1}) mm, looking along ({:.2}, {:.2}, {:.2})",
+            c.name,
+            path.display(),
+            c.json.width,
+            c.json.height,
+            c.json.fx,
+            c.json.fy,
+            o.x,
+            o.y,
+            o.z,
+            d.x,
+            d.y,
+            d.z
+        );
+        for note in &c.notes {
+            println!("  {note}");
+        }
+    }
+    let baselines = calib::baselines(&cams);
+    for &(i, j, dist) in &baselines {
+        println!("distance {} - {}: {dist:.1} mm", cams[i].name, cams[j].name);
+    }
+    // Cameras filming teeth from about 20 cm stand centimetres to a metre apart.
+    let widest = baselines.iter().map(|b| b.2).fold(0.0, f64::max);
+    if !baselines.is_empty() && widest < 5.0 {
+        println!(
+            "note: the cameras lie within {widest:.2} mm of each other: are the translations in metres (--unit m) or centimetres (--unit cm)?"
+        );
+    } else if widest > 5000.0 {
+        println!(
+            "note: cameras {widest:.0} mm apart: are the translations in millimetres already (--unit mm)?"
+        );
+    }
+    Ok(())
+}
+
+fn videos(a: VideoArgs) -> anyhow::Result<()> {
+    let mut jobs = Vec::new();
+    for arg in &a.videos {
+        let (Some(name), file) = split_named(arg) else {
+            bail!("{arg}: give each video as NAME=FILE (the camera's name, then its video)");
+        };
+        calib::check_name(name, file)?;
+        jobs.push((name.to_string(), file.to_path_buf()));
+    }
+    let options = Extract {
+        first: a.first,
+        count: a.count.map(|n| n as u64),
+        format: if a.jpg {
+            FrameFormat::Jpg
+        } else {
+            FrameFormat::Png
+        },
+        replace: a.replace,
+    };
+    for (name, file) in jobs {
+        let info = video::probe(&file)?;
+        let total = info
+            .frames
+            .map(|n| n.saturating_sub(a.first))
+            .map(|n| a.count.map_or(n, |c| n.min(c as u64)));
+        let out = a.capture.join("images").join(&name);
+        let bar = crate::cli::progress_bar(total.unwrap_or(0), &name);
+        let written = video::extract(&file, &out, &options, |n| bar.set_position(n))?;
+        bar.finish_and_clear();
+        println!(
+            "{name}: {written} frames of {}x{}{} -> {}/{:06}.{} ..",
+            info.width,
+            info.height,
+            info.fps
+                .map(|f| format!(" at {f:.3} fps"))
+                .unwrap_or_default(),
+            out.display(),
+            a.first,
+            options.format.extension()
+        );
+    }
+    Ok(())
+}

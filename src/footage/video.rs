@@ -1,0 +1,302 @@
+//! Video in: frames of any video ffmpeg reads, written as images/<camera>/<frame:06>.png (or
+//! .jpg) by the `ffmpeg` program, run as a process. File numbers are the video's own frame
+//! numbers (decoded order, from 0), so a cut range keeps its place in the footage and the
+//! sync offsets stay valid.
+
+use std::io::{BufRead, BufReader, Read};
+use std::path::{Path, PathBuf};
+use std::process::{Command, Stdio};
+
+use crate::error::{Error, Result};
+
+/// Where ffmpeg is found: `JAWTRACK_FFMPEG` names the program, else `ffmpeg` on the PATH.
+pub fn ffmpeg_program() -> PathBuf {
+    std::env::var_os("JAWTRACK_FFMPEG")
+        .map(PathBuf::from)
+        .unwrap_or_else(|| PathBuf::from("ffmpeg"))
+}
+
+/// ffprobe beside ffmpeg (the same folder when ffmpeg is named by path).
+fn ffprobe_program() -> PathBuf {
+    let ff = ffmpeg_program();
+    match ff.parent() {
+        Some(dir) if !dir.as_os_str().is_empty() => dir.join("ffprobe"),
+        _ => PathBuf::from("ffprobe"),
+    }
+}
+
+const INSTALL: &str = "install it from the system's packages (`apt-get install ffmpeg` on \
+                       Debian/Ubuntu, `dnf install ffmpeg` on Fedora, `brew install ffmpeg` on \
+                       macOS) or name it with JAWTRACK_FFMPEG=/path/to/ffmpeg";
+
+fn spawn_error(program: &Path, video: &Path, e: std::io::Error) -> Error {
+    let problem = if e.kind() == std::io::ErrorKind::NotFound {
+        format!(
+            "the `{}` program was not found: {INSTALL}",
+            program.display()
+        )
+    } else {
+        format!("cannot run `{}`: {e}", program.display())
+    };
+    Error::invalid(video, "ffmpeg", problem)
+}
+
+/// The image format frames are written in.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Default)]
+pub enum FrameFormat {
+    /// Lossless.
+    #[default]
+    Png,
+    /// About a tenth of the size, at ffmpeg's quality 2 (of 2-31).
+    Jpg,
+}
+
+impl FrameFormat {
+    pub fn extension(self) -> &'static str {
+        match self {
+            FrameFormat::Png => "png",
+            FrameFormat::Jpg => "jpg",
+        }
+    }
+}
+
+/// What ffprobe says of a video's first video stream.
+#[derive(Debug, Clone, PartialEq)]
+pub struct VideoInfo {
+    pub width: u32,
+    pub height: u32,
+    /// Frames per second, when the container states it.
+    pub fps: Option<f64>,
+    /// Frame count, when the container states it (MP4 and MOV do).
+    pub frames: Option<u64>,
+}
+
+#[derive(serde::Deserialize)]
+struct Probe {
+    #[serde(default)]
+    streams: Vec<ProbeStream>,
+}
+
+#[derive(serde::Deserialize)]
+struct ProbeStream {
+    width: Option<u32>,
+    height: Option<u32>,
+    avg_frame_rate: Option<String>,
+    nb_frames: Option<String>,
+}
+
+/// Probe a video with ffprobe.
+pub fn probe(video: &Path) -> Result<VideoInfo> {
+    if !video.is_file() {
+        return Err(Error::Missing {
+            path: video.to_path_buf(),
+            what: "video".into(),
+        });
+    }
+    let program = ffprobe_program();
+    let out = Command::new(&program)
+        .args(["-v", "error", "-select_streams", "v:0", "-show_entries"])
+        .arg("stream=width,height,avg_frame_rate,nb_frames")
+        .args(["-of", "json"])
+        .arg(video)
+        .stdin(Stdio::null())
+        .output()
+        .map_err(|e| spawn_error(&program, video, e))?;
+    if !out.status.success() {
+        return Err(Error::invalid(
+            video,
+            "video",
+            format!(
+                "ffprobe cannot read it: {}",
+                String::from_utf8_lossy(&out.stderr).trim()
+            ),
+        ));
+    }
+    let p: Probe = serde_json::from_slice(&out.stdout).map_err(|e| {
+        Error::invalid(
+            video,
+            "video",
+            format!("ffprobe's answer did not parse: {e}"),
+        )
+    })?;
+    let s = p
+        .streams
+        .into_iter()
+        .next()
+        .ok_or_else(|| Error::invalid(video, "video", "has no video stream"))?;
+    let (Some(width), Some(height)) = (s.width, s.height) else {
+        return Err(Error::invalid(
+            video,
+            "video",
+            "ffprobe gives no frame size",
+        ));
+    };
+    let fps = s.avg_frame_rate.as_deref().and_then(|r| {
+        let (n, d) = r.split_once('/')?;
+        let (n, d): (f64, f64) = (n.parse().ok()?, d.parse().ok()?);
+        (d > 0.0 && n > 0.0).then_some(n / d)
+    });
+    let frames = s
+        .nb_frames
+        .as_deref()
+        .and_then(|n| n.parse().ok())
+        .filter(|&n| n > 0);
+    Ok(VideoInfo {
+        width,
+        height,
+        fps,
+        frames,
+    })
+}
+
+/// Which frames to write and how.
+#[derive(Debug, Clone, Copy, Default)]
+pub struct Extract {
+    /// The first frame written (the video's frame number, from 0).
+    pub first: u64,
+    /// How many frames at most (all to the end when `None`).
+    pub count: Option<u64>,
+    pub format: FrameFormat,
+    /// Replace an existing images/<camera>/ folder (otherwise one is never touched).
+    pub replace: bool,
+}
+
+/// ffmpeg before 5.1 knows `-vsync`, after it `-fps_mode`; both keep every decoded frame
+/// once (no duplicates to fill a constant rate).
+fn passthrough_args(program: &Path) -> [&'static str; 2] {
+    let version = Command::new(program)
+        .arg("-version")
+        .stdin(Stdio::null())
+        .output()
+        .ok()
+        .map(|o| String::from_utf8_lossy(&o.stdout).into_owned())
+        .unwrap_or_default();
+    let number = version.split_whitespace().nth(2).and_then(|v| {
+        let mut it = v.split(['.', '-']);
+        Some((
+            it.next()?.parse::<u32>().ok()?,
+            it.next()?.parse::<u32>().ok()?,
+        ))
+    });
+    match number {
+        Some((major, minor)) if (major, minor) < (5, 1) => ["-vsync", "passthrough"],
+        _ => ["-fps_mode", "passthrough"],
+    }
+}
+
+/// Write frames of `video` to `out` (e.g. capture/images/cam0) through a staging folder
+/// beside it, renamed into place when ffmpeg has finished, so an interrupted import leaves no
+/// half-filled folder. `progress` is called with the number of frames written so far.
+/// Returns the number of frames written.
+pub fn extract(
+    video: &Path,
+    out: &Path,
+    options: &Extract,
+    mut progress: impl FnMut(u64),
+) -> Result<u64> {
+    if !video.is_file() {
+        return Err(Error::Missing {
+            path: video.to_path_buf(),
+            what: "video".into(),
+        });
+    }
+    if out.exists() && !options.replace {
+        return Err(Error::invalid(
+            out,
+            "output",
+            "exists: remove it, or pass --replace to write the frames anew",
+        ));
+    }
+    let parent = out.parent().unwrap_or(Path::new("."));
+    let werr = |path: &Path, error| Error::Write {
+        path: path.to_path_buf(),
+        error,
+    };
+    std::fs::create_dir_all(parent).map_err(|e| werr(parent, e))?;
+    let stage = tempfile::Builder::new()
+        .prefix(".import-")
+        .tempdir_in(parent)
+        .map_err(|e| werr(parent, e))?;
+
+    let program = ffmpeg_program();
+    let mut cmd = Command::new(&program);
+    cmd.args(["-nostdin", "-hide_banner", "-loglevel", "error", "-nostats"])
+        .args(["-progress", "pipe:1"])
+        .arg("-i")
+        .arg(video)
+        .args(["-map", "0:v:0"])
+        .args(passthrough_args(&program));
+    if options.first > 0 {
+        cmd.args(["-vf", &format!("select=gte(n\\,{})", options.first)]);
+    }
+    if let Some(n) = options.count {
+        cmd.args(["-frames:v", &n.to_string()]);
+    }
+    if options.format == FrameFormat::Jpg {
+        cmd.args(["-q:v", "2"]);
+    }
+    cmd.args(["-start_number", &options.first.to_string(), "-f", "image2"])
+        .arg(
+            stage
+                .path()
+                .join(format!("%06d.{}", options.format.extension())),
+        )
+        .stdin(Stdio::null())
+        .stdout(Stdio::piped())
+        .stderr(Stdio::piped());
+    let mut child = cmd.spawn().map_err(|e| spawn_error(&program, video, e))?;
+    let mut stderr = child.stderr.take().expect("piped");
+    let errors = std::thread::spawn(move || {
+        let mut s = String::new();
+        let _ = stderr.read_to_string(&mut s);
+        s
+    });
+    let stdout = child.stdout.take().expect("piped");
+    for line in BufReader::new(stdout).lines().map_while(|l| l.ok()) {
+        if let Some(n) = line
+            .strip_prefix("frame=")
+            .and_then(|n| n.trim().parse().ok())
+        {
+            progress(n);
+        }
+    }
+    let status = child.wait().map_err(|e| spawn_error(&program, video, e))?;
+    let errors = errors.join().unwrap_or_default();
+    if !status.success() {
+        return Err(Error::invalid(
+            video,
+            "video",
+            format!("ffmpeg failed ({status}): {}", errors.trim()),
+        ));
+    }
+    let written = std::fs::read_dir(stage.path())
+        .map_err(|e| Error::Read {
+            path: stage.path().to_path_buf(),
+            error: e,
+        })?
+        .count() as u64;
+    if written == 0 {
+        return Err(Error::invalid(
+            video,
+            "video",
+            format!(
+                "no frames from frame {} on: the video has fewer frames",
+                options.first
+            ),
+        ));
+    }
+    progress(written);
+    let staged = stage.keep();
+    if out.exists() {
+        let old = parent.join(format!(
+            ".replaced-{}",
+            out.file_name().unwrap_or_default().to_string_lossy()
+        ));
+        std::fs::rename(out, &old).map_err(|e| werr(out, e))?;
+        std::fs::rename(&staged, out).map_err(|e| werr(out, e))?;
+        std::fs::remove_dir_all(&old).map_err(|e| werr(&old, e))?;
+    } else {
+        std::fs::rename(&staged, out).map_err(|e| werr(out, e))?;
+    }
+    Ok(written)
+}

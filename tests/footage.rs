@@ -1,0 +1,324 @@
+//! Footage in: cameras imported from the files OpenCV 4, OpenCV 5 and COLMAP write
+//! (fixtures/calib, made by its make.py) equal the originals; videos written by ffmpeg come
+//! back as numbered frames; a light switched off and on gives each camera's offset.
+//!
+//! The video tests need the `ffmpeg` program. Without it they skip with a message, unless
+//! JAWTRACK_REQUIRE_FFMPEG=1 (set by CI, which installs it).
+
+mod common;
+
+use std::path::{Path, PathBuf};
+use std::process::Command;
+
+use common::assert_mentions;
+
+fn jawtrack(args: &[&str]) -> std::process::Output {
+    Command::new(env!("CARGO_BIN_EXE_jawtrack"))
+        .args(args)
+        .output()
+        .unwrap()
+}
+
+fn ok(args: &[&str]) -> String {
+    let out = jawtrack(args);
+    assert!(
+        out.status.success(),
+        "jawtrack {args:?}: {}",
+        String::from_utf8_lossy(&out.stderr)
+    );
+    String::from_utf8_lossy(&out.stdout).into_owned()
+}
+
+fn fixtures() -> PathBuf {
+    Path::new(env!("CARGO_MANIFEST_DIR")).join("fixtures/calib")
+}
+
+fn s(p: &Path) -> &str {
+    p.to_str().unwrap()
+}
+
+/// Every imported number within 1e-6 of the original's, relative to its field's scale.
+fn assert_same_cameras(dir: &Path, distortion_terms: &[usize]) {
+    let expected: serde_json::Value =
+        serde_json::from_str(&std::fs::read_to_string(fixtures().join("expected.json")).unwrap())
+            .unwrap();
+    for (name, want) in expected.as_object().unwrap() {
+        let path = dir.join("cameras").join(format!("{name}.json"));
+        let got: serde_json::Value =
+            serde_json::from_str(&std::fs::read_to_string(&path).unwrap()).unwrap();
+        let close = |a: f64, b: f64, scale: f64, what: &str| {
+            assert!(
+                (a - b).abs() <= 1e-6 * scale,
+                "{name} {what}: {a} against {b}"
+            );
+        };
+        for k in ["fx", "fy", "cx", "cy"] {
+            close(
+                got[k].as_f64().unwrap(),
+                want[k].as_f64().unwrap(),
+                1000.0,
+                k,
+            );
+        }
+        assert_eq!(
+            (&got["width"], &got["height"]),
+            (&want["width"], &want["height"])
+        );
+        let d = |v: &serde_json::Value, i: usize| v["distortion"][i].as_f64().unwrap_or(0.0);
+        for &i in distortion_terms {
+            close(d(&got, i), d(want, i), 1.0, &format!("distortion[{i}]"));
+        }
+        for i in 0..3 {
+            for j in 0..3 {
+                let g = got["rotation"][i][j].as_f64().unwrap();
+                close(g, want["rotation"][i][j].as_f64().unwrap(), 1.0, "rotation");
+            }
+            let t = got["translation"][i].as_f64().unwrap();
+            close(
+                t,
+                want["translation"][i].as_f64().unwrap(),
+                200.0,
+                "translation",
+            );
+        }
+    }
+}
+
+#[test]
+fn opencv_files_import_as_the_originals() {
+    for version in ["opencv4", "opencv5"] {
+        let t = tempfile::tempdir().unwrap();
+        let f = fixtures().join(version);
+        let out = ok(&[
+            "import",
+            "cameras",
+            s(t.path()),
+            s(&f.join("cam0.yml")),
+            s(&f.join("cam1.xml")),
+            s(&f.join("cam2.yml")),
+            "--unit",
+            "m",
+        ]);
+        assert_same_cameras(t.path(), &[0, 1, 2, 3, 4]);
+        // The layout is printed: the cameras stand about 6 cm apart.
+        assert_mentions(
+            &out,
+            &[
+                "distance cam0 - cam1: 62.6 mm",
+                "centre (-60.0, -5.0, 190.0) mm",
+            ],
+        );
+    }
+}
+
+#[test]
+fn a_colmap_model_imports_as_the_originals() {
+    let t = tempfile::tempdir().unwrap();
+    ok(&[
+        "import",
+        "cameras",
+        s(t.path()),
+        s(&fixtures().join("colmap")),
+    ]);
+    // COLMAP's OPENCV model has no k3 (cam2's FULL_OPENCV has, and is checked below).
+    assert_same_cameras(t.path(), &[0, 1, 2, 3]);
+    let cam2: serde_json::Value =
+        serde_json::from_str(&std::fs::read_to_string(t.path().join("cameras/cam2.json")).unwrap())
+            .unwrap();
+    assert_eq!(cam2["distortion"].as_array().unwrap().len(), 5);
+    // The files round-trip through the capture reader.
+    for cam in ["cam0", "cam1", "cam2"] {
+        jawtrack::capture::read_camera(&t.path().join(format!("cameras/{cam}.json")), cam).unwrap();
+    }
+}
+
+#[test]
+fn calibration_errors_name_the_file_and_field() {
+    let t = tempfile::tempdir().unwrap();
+    let bad = t.path().join("bad.yml");
+    std::fs::write(
+        &bad,
+        "%YAML:1.0\n---\nimage_width: 640\nimage_height: 480\ncamera_matrix: !!opencv-matrix\n   rows: 3\n   cols: 3\n   dt: d\n   data: [ 500., 0., 320., 0., 500., 240., 0., 0., 1. ]\nR: !!opencv-matrix\n   rows: 3\n   cols: 3\n   dt: d\n   data: [ 1., 0., 0., 0., 1., 0., 0., 0., 1. ]\n",
+    )
+    .unwrap();
+    let out = jawtrack(&["import", "cameras", s(&t.path().join("cap")), s(&bad)]);
+    assert!(!out.status.success());
+    let e = String::from_utf8_lossy(&out.stderr);
+    assert_mentions(&e, &["bad.yml", "`T`", "translation beside the rotation"]);
+    assert!(
+        !t.path().join("cap/cameras").exists(),
+        "nothing written on error"
+    );
+    let out = jawtrack(&[
+        "import",
+        "cameras",
+        s(&t.path().join("cap")),
+        &format!("../x={}", s(&bad)),
+    ]);
+    assert!(!out.status.success());
+}
+
+/// `ffmpeg` is installed, or the test is skipped (failed where CI requires it).
+fn have_ffmpeg() -> bool {
+    let found = Command::new("ffmpeg").arg("-version").output().is_ok();
+    if !found {
+        assert!(
+            std::env::var_os("JAWTRACK_REQUIRE_FFMPEG").is_none(),
+            "JAWTRACK_REQUIRE_FFMPEG is set but `ffmpeg` is not on the PATH"
+        );
+        eprintln!("skipped: no `ffmpeg` on the PATH");
+    }
+    found
+}
+
+/// A textured room whose light goes off at time `off` and back on at `on` (frames; frame k
+/// exposed over [k, k + 1), so a switch inside a frame darkens it in part).
+fn write_frames(dir: &Path, n: u32, off: f64, on: f64, seed: u32) {
+    std::fs::create_dir_all(dir).unwrap();
+    for k in 0..n {
+        let (a, b) = (k as f64, k as f64 + 1.0);
+        let dark = (b.min(on) - a.max(off)).clamp(0.0, 1.0);
+        let light = 1.0 - 0.8 * dark;
+        let img = image::RgbImage::from_fn(160, 120, |x, y| {
+            let h = (x / 8 * 73 + y / 8 * 151 + seed * 31) % 97;
+            let v = (60.0 + 1.5 * h as f64 + 0.3 * ((x + k) % 40) as f64) * light;
+            image::Rgb([v as u8, (v * 0.9) as u8, (v * 0.8) as u8])
+        });
+        img.save(dir.join(format!("{k:06}.png"))).unwrap();
+    }
+}
+
+fn encode(frames: &Path, out: &Path) {
+    let st = Command::new("ffmpeg")
+        .args(["-v", "error", "-y", "-framerate", "24", "-i"])
+        .arg(frames.join("%06d.png"))
+        .args(["-c:v", "libx264", "-pix_fmt", "yuv420p"])
+        .arg(out)
+        .status()
+        .unwrap();
+    assert!(st.success());
+}
+
+#[test]
+fn videos_import_and_sync_from_a_light_switch() {
+    if !have_ffmpeg() {
+        return;
+    }
+    let t = tempfile::tempdir().unwrap();
+    // Three cameras started at different times: the light goes off in their frames 20, 23
+    // and 17.6 (cam2's exposure starts 0.4 frame after the others').
+    let events = [("cam0", 20.0), ("cam1", 23.0), ("cam2", 17.6)];
+    let mut args = vec![];
+    for (i, &(name, off)) in events.iter().enumerate() {
+        let frames = t.path().join(format!("src-{name}"));
+        write_frames(&frames, 48, off, off + 12.0, i as u32);
+        let video = t.path().join(format!("{name}.mp4"));
+        encode(&frames, &video);
+        args.push(format!("{name}={}", s(&video)));
+    }
+    let cap = t.path().join("cap");
+    let mut cmd = vec!["import", "video", s(&cap)];
+    cmd.extend(args.iter().map(String::as_str));
+    let out = ok(&cmd);
+    assert_mentions(&out, &["cam0: 48 frames of 160x120 at 24.000 fps"]);
+    let files = std::fs::read_dir(cap.join("images/cam1")).unwrap().count();
+    assert_eq!(files, 48);
+    assert!(cap.join("images/cam1/000047.png").is_file());
+
+    // An existing folder is never overwritten without --replace.
+    let again = jawtrack(&cmd);
+    assert!(!again.status.success());
+    assert_mentions(
+        &String::from_utf8_lossy(&again.stderr),
+        &["images/cam0", "--replace"],
+    );
+
+    // A cut keeps the video's frame numbers.
+    let cut = t.path().join("cut");
+    ok(&[
+        "import",
+        "video",
+        s(&cut),
+        &args[0],
+        "--first",
+        "10",
+        "--count",
+        "5",
+        "--jpg",
+    ]);
+    let mut names: Vec<String> = std::fs::read_dir(cut.join("images/cam0"))
+        .unwrap()
+        .map(|e| e.unwrap().file_name().into_string().unwrap())
+        .collect();
+    names.sort();
+    assert_eq!(
+        names,
+        [
+            "000010.jpg",
+            "000011.jpg",
+            "000012.jpg",
+            "000013.jpg",
+            "000014.jpg"
+        ]
+    );
+
+    // The offsets go into capture.json; its other fields stay.
+    let cj = cap.join("capture.json");
+    std::fs::write(
+        &cj,
+        r#"{"format": "jawtrack-capture/1", "cameras": ["cam0", "cam1", "cam2"],
+            "frames": {"first": 0, "count": 30}, "meshes": {"upper": "u.obj", "lower": "l.obj"},
+            "boi": {"group": "boi"}, "masks": {"dir": "masks", "mode": "combined"}, "note": "mine"}"#,
+    )
+    .unwrap();
+    let out = ok(&["sync", s(&cap), "--fps", "24"]);
+    assert_mentions(
+        &out,
+        &["cam1: light off at frame 23.0", "frames.offsets written"],
+    );
+    // The spread within a frame, read from the partly dark frame through H.264.
+    let within = |cam: &str| -> f64 {
+        let line = out
+            .lines()
+            .find(|l| l.starts_with(&format!("{cam}: offset")))
+            .unwrap();
+        line.split(", ")
+            .nth(1)
+            .unwrap()
+            .split(' ')
+            .next()
+            .unwrap()
+            .parse()
+            .unwrap()
+    };
+    assert!((within("cam0") - 0.4).abs() < 0.1, "{out}");
+    assert!(within("cam2").abs() < 1e-9, "{out}");
+    let doc: serde_json::Value =
+        serde_json::from_str(&std::fs::read_to_string(&cj).unwrap()).unwrap();
+    assert_eq!(
+        doc["frames"]["offsets"],
+        serde_json::json!({"cam0": 2, "cam1": 5, "cam2": 0})
+    );
+    assert_eq!(doc["note"], "mine");
+    assert_eq!(doc["frames"]["count"], 30);
+}
+
+#[test]
+fn a_missing_ffmpeg_says_how_to_install_it() {
+    let t = tempfile::tempdir().unwrap();
+    let video = t.path().join("v.mp4");
+    std::fs::write(&video, b"not a video").unwrap();
+    let out = Command::new(env!("CARGO_BIN_EXE_jawtrack"))
+        .env("JAWTRACK_FFMPEG", t.path().join("no-such-ffmpeg"))
+        .args([
+            "import",
+            "video",
+            s(&t.path().join("cap")),
+            &format!("cam0={}", s(&video)),
+        ])
+        .output()
+        .unwrap();
+    assert!(!out.status.success());
+    let e = String::from_utf8_lossy(&out.stderr);
+    assert_mentions(&e, &["v.mp4", "not found", "apt-get install ffmpeg"]);
+}
