@@ -14,8 +14,8 @@
 // fixed-function viewport transform is then exact, whatever integer offset places the tile in
 // the atlas. Otherwise positions stay homogeneous and the GPU clips at the near plane.
 //
-// A camera with lens distortion has each vertex distorted before it is snapped (as the CPU
-// twin does). A draw crossing the near plane is drawn without distortion: the clipping is the
+// A camera with a lens (OpenCV's model or the fisheye) has each vertex distorted before it is
+// snapped (as the CPU twin does). A draw crossing the near plane is drawn without distortion: the clipping is the
 // GPU's there, and the CPU's twin, which clips first, distorts the clipped polygon. Such poses
 // put the arch within 1 mm of the camera.
 
@@ -38,13 +38,13 @@ struct Draw {
     layer: u32,
     arch_bit: u32,
     _pad: vec2<u32>,
-    // The camera's lens, OpenCV's (k1, k2, p1, p2) and k3, the r² beyond which points are not
-    // projected (the model folds back), and whether there is one (src/energy/lens.rs).
-    lens: vec4<f32>,
-    lens_k3: f32,
+    // The camera's lens (src/energy/lens.rs): OpenCV's (k1, k2, p1, p2), (k3, k4, k5, k6),
+    // (s1, s2, s3, s4), or the fisheye's (k1, k2, k3, k4) in `lens[0]`; the r² beyond which
+    // points are not projected (the model folds back); the model: 0 none, 1 OpenCV, 2 fisheye.
+    lens: array<vec4<f32>, 3>,
     lens_limit_r2: f32,
-    distorted: u32,
-    _pad2: u32,
+    lens_model: u32,
+    _pad2: vec2<u32>,
 }
 
 @group(0) @binding(0) var<storage, read> draws: array<Draw>;
@@ -58,6 +58,36 @@ struct VsOut {
     @location(1) @interpolate(flat) draw: u32,
 }
 
+// atan(r), r ≥ 0, from +, ×, ÷ alone, as src/energy/lens.rs computes it (the hardware's atan
+// need not round as the CPU's does).
+fn atan_twin(r: f32) -> f32 {
+    var a = r;
+    let flip = r > 1.0;
+    if flip {
+        a = 1.0 / r;
+    }
+    var u = a;
+    var base = 0.0;
+    if a > 0.41421357 {
+        u = (a - 1.0) / (a + 1.0);
+        base = 0.7853982;
+    }
+    let u2 = u * u;
+    let series = u
+        * (1.0
+            + u2 * (-1.0 / 3.0
+                + u2 * (1.0 / 5.0
+                    + u2 * (-1.0 / 7.0
+                        + u2 * (1.0 / 9.0
+                            + u2 * (-1.0 / 11.0
+                                + u2 * (1.0 / 13.0 + u2 * (-1.0 / 15.0 + u2 * (1.0 / 17.0)))))))));
+    let t = base + series;
+    if flip {
+        return 1.5707964 - t;
+    }
+    return t;
+}
+
 // Distorted normalised coordinates, in the CPU's order of operations. Beyond the lens's limit
 // the point is sent far outside the image (the CPU drops such triangles; they cannot reach the
 // image either way while the limit lies outside it).
@@ -66,11 +96,25 @@ fn distort(d: Draw, n: vec2<f32>) -> vec2<f32> {
     if r2 > d.lens_limit_r2 {
         return n * (1.0e3 / sqrt(r2));
     }
-    let radial = 1.0 + r2 * (d.lens.x + r2 * (d.lens.y + r2 * d.lens_k3));
+    let a = d.lens[0];
+    if d.lens_model == 2u {
+        if r2 < 1.0e-20 {
+            return n;
+        }
+        let r = sqrt(r2);
+        let t = atan_twin(r);
+        let t2 = t * t;
+        let s = t * (1.0 + t2 * (a.x + t2 * (a.y + t2 * (a.z + t2 * a.w)))) / r;
+        return n * s;
+    }
+    let b = d.lens[1];
+    let c = d.lens[2];
+    // With k4..k6 zero the quotient is by 1.0, exact: the classic model's bits.
+    let radial = (1.0 + r2 * (a.x + r2 * (a.y + r2 * b.x))) / (1.0 + r2 * (b.y + r2 * (b.z + r2 * b.w)));
     let xy = n.x * n.y;
     return vec2<f32>(
-        n.x * radial + 2.0 * d.lens.z * xy + d.lens.w * (r2 + 2.0 * n.x * n.x),
-        n.y * radial + d.lens.z * (r2 + 2.0 * n.y * n.y) + 2.0 * d.lens.w * xy,
+        n.x * radial + 2.0 * a.z * xy + a.w * (r2 + 2.0 * n.x * n.x) + r2 * (c.x + r2 * c.y),
+        n.y * radial + a.z * (r2 + 2.0 * n.y * n.y) + 2.0 * a.w * xy + r2 * (c.z + r2 * c.w),
     );
 }
 
@@ -83,7 +127,7 @@ fn vs_model(@location(0) position: vec3<f32>, @builtin(instance_index) draw: u32
     var out: VsOut;
     if d.projected != 0u {
         var fb_exact = d.focal * p.xy / p.z + d.centre;
-        if d.distorted != 0u {
+        if d.lens_model != 0u {
             fb_exact = d.focal * distort(d, p.xy / p.z) + d.centre;
         }
         let fb = floor(fb_exact * SUBPIXELS + 0.5) / SUBPIXELS;

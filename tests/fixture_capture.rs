@@ -84,7 +84,7 @@ fn masks_are_used_as_seen_and_models_are_drawn_through_the_lens() {
     };
     let through_lens = vertices(&cam);
     let pinhole = vertices(&Camera {
-        distortion: [0.0; 5],
+        distortion: jawtrack::geometry::Distortion::NONE,
         ..cam.clone()
     });
     for k in 0..4 {

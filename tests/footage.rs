@@ -322,3 +322,142 @@ fn a_missing_ffmpeg_says_how_to_install_it() {
     let e = String::from_utf8_lossy(&out.stderr);
     assert_mentions(&e, &["v.mp4", "not found", "apt-get install ffmpeg"]);
 }
+
+fn grey_png(path: &Path, w: u32, h: u32, on: impl Fn(u32, u32) -> bool) {
+    std::fs::create_dir_all(path.parent().unwrap()).unwrap();
+    image::GrayImage::from_fn(w, h, |x, y| image::Luma([if on(x, y) { 255 } else { 0 }]))
+        .save(path)
+        .unwrap();
+}
+
+#[test]
+fn masks_from_sam2_objects_and_a_cvat_export() {
+    use jawtrack::capture::masks::{LOWER_BIT, MOUTH_BIT, MaskMode, UPPER_BIT, decode_mask};
+    let t = tempfile::tempdir().unwrap();
+    // SAM 2: one folder per object; the mouth interior overlaps the teeth at their edges.
+    let sam = t.path().join("sam");
+    for f in 0..2u32 {
+        grey_png(&sam.join(format!("1/{f:05}.png")), 40, 30, |x, y| {
+            (5..25).contains(&x) && y < 10
+        });
+        grey_png(&sam.join(format!("2/{f:05}.png")), 40, 30, |x, y| {
+            (5..25).contains(&x) && (12..20).contains(&y)
+        });
+        grey_png(&sam.join(format!("3/{f:05}.png")), 40, 30, |x, y| {
+            (3..30).contains(&x) && (8..14).contains(&y)
+        });
+    }
+    let cap = t.path().join("cap");
+    let out = ok(&[
+        "import",
+        "masks",
+        s(&cap),
+        "--camera",
+        "cam0",
+        "--objects",
+        s(&sam),
+        "--label",
+        "1=upper",
+        "--label",
+        "2=lower",
+        "--label",
+        "3=mouth",
+        "--frame-offset",
+        "10",
+    ]);
+    assert_mentions(
+        &out,
+        &[
+            "cam0: 2 masks",
+            "\"mode\": \"per-arch\", \"upper\": 85, \"lower\": 170, \"mouth\": 40",
+        ],
+    );
+    let m = decode_mask(
+        &cap.join("masks/cam0/000011.png"),
+        MaskMode::PerArch {
+            upper: 85,
+            lower: 170,
+        },
+        Some(40),
+    )
+    .unwrap();
+    // Teeth win over the mouth interior where both were painted.
+    assert_eq!(m.count(UPPER_BIT), 20 * 10);
+    assert_eq!(m.count(LOWER_BIT), 20 * 8);
+    assert_eq!(m.count(MOUTH_BIT), 27 * 6 - 20 * 2 - 20 * 2);
+    assert!(!cap.join("masks/cam0/000009.png").exists());
+    // Masks a user has are not overwritten without --replace.
+    let again = jawtrack(&[
+        "import",
+        "masks",
+        s(&cap),
+        "--camera",
+        "cam0",
+        "--objects",
+        s(&sam),
+        "--label",
+        "1=teeth",
+    ]);
+    assert!(!again.status.success());
+    assert_mentions(
+        &String::from_utf8_lossy(&again.stderr),
+        &["masks/cam0", "--replace"],
+    );
+
+    // CVAT: colours by the label map, combined teeth.
+    let cvat = t.path().join("cvat");
+    std::fs::create_dir_all(cvat.join("SegmentationClass")).unwrap();
+    std::fs::write(
+        cvat.join("labelmap.txt"),
+        "# label:color_rgb:parts:actions\nbackground:0,0,0::\nteeth:250,50,83::\ninside:61,61,245::\nlips:255,204,51::\n",
+    )
+    .unwrap();
+    image::RgbImage::from_fn(32, 24, |x, _| {
+        image::Rgb(match x {
+            0..8 => [250, 50, 83],
+            8..12 => [61, 61, 245],
+            12..20 => [255, 204, 51],
+            _ => [0, 0, 0],
+        })
+    })
+    .save(cvat.join("SegmentationClass/frame_000004.png"))
+    .unwrap();
+    let out = ok(&[
+        "import",
+        "masks",
+        s(&cap),
+        "--camera",
+        "cam1",
+        "--cvat",
+        s(&cvat),
+        "--label",
+        "teeth=teeth",
+        "--label",
+        "inside=mouth",
+    ]);
+    assert_mentions(&out, &["\"mode\": \"combined\", \"mouth\": 40"]);
+    let m = decode_mask(
+        &cap.join("masks/cam1/000004.png"),
+        MaskMode::Combined,
+        Some(40),
+    )
+    .unwrap();
+    assert_eq!(m.count(UPPER_BIT), 8 * 24);
+    assert_eq!(m.count(MOUTH_BIT), 4 * 24);
+    // A label the map lacks is named.
+    let bad = jawtrack(&[
+        "import",
+        "masks",
+        s(&cap),
+        "--camera",
+        "cam2",
+        "--cvat",
+        s(&cvat),
+        "--label",
+        "incisors=teeth",
+    ]);
+    assert_mentions(
+        &String::from_utf8_lossy(&bad.stderr),
+        &["labelmap.txt", "`incisors`", "inside, lips, teeth"],
+    );
+}

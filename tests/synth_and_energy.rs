@@ -173,7 +173,7 @@ fn another_rig_and_a_lens_are_written_as_given() {
     assert_eq!(c.camera_names(), ["left", "right"]);
     assert_eq!(
         c.cameras[1].calibrated.distortion,
-        [-0.1, 0.0, 0.0, 0.0, 0.0]
+        jawtrack::geometry::Distortion::brown([-0.1, 0.0, 0.0, 0.0, 0.0])
     );
     assert!(!c.cameras[0].calibrated.has_distortion());
     assert_eq!(c.cameras[0].mask_size, Some((960, 540)));
@@ -191,7 +191,9 @@ fn another_rig_and_a_lens_are_written_as_given() {
     // A lens that folds back inside the image, and a folder without cameras, are refused.
     let err = generate(
         &t.path().join("x"),
-        &opts(Some([-0.6, 0.0, 0.0, 0.0, 0.0])),
+        &opts(Some(jawtrack::geometry::Distortion::brown([
+            -0.6, 0.0, 0.0, 0.0, 0.0,
+        ]))),
         &|| {},
     )
     .unwrap_err()

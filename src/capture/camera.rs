@@ -4,7 +4,7 @@ use std::path::Path;
 
 use super::json::{self, CameraJson, check_finite, read_json};
 use crate::error::{Error, Result, Shown};
-use crate::geometry::Camera;
+use crate::geometry::{Camera, Distortion};
 
 /// Read a cameras/<name>.json file and validate every field.
 pub fn read_camera(path: &Path, name: &str) -> Result<Camera> {
@@ -63,21 +63,35 @@ pub fn camera_from_json(cj: &CameraJson, path: &Path, name: &str) -> Result<Came
             ));
         }
     }
-    let mut distortion = [0.0; 5];
-    if let Some(d) = &cj.distortion {
-        check_finite(path, "distortion", d)?;
-        if !(d.len() == 4 || d.len() == 5) {
+    let fisheye = match cj.lens.as_deref() {
+        None | Some("opencv") => false,
+        Some("fisheye") => true,
+        Some(other) => {
             return Err(Error::invalid(
                 path,
-                "distortion",
+                "lens",
                 format!(
-                    "expected [k1, k2, p1, p2] or [k1, k2, p1, p2, k3], found {} values",
-                    d.len()
+                    "`{}` is not a lens model: use \"opencv\" or \"fisheye\"",
+                    crate::capture::read::quote(other)
                 ),
             ));
         }
-        distortion[..d.len()].copy_from_slice(d);
-    }
+    };
+    let distortion = match &cj.distortion {
+        Some(d) => {
+            check_finite(path, "distortion", d)?;
+            Distortion::from_coefficients(d, fisheye)
+                .map_err(|problem| Error::invalid(path, "distortion", problem))?
+        }
+        None if fisheye => {
+            return Err(Error::invalid(
+                path,
+                "distortion",
+                "a fisheye lens needs its 4 coefficients",
+            ));
+        }
+        None => Distortion::NONE,
+    };
     let pose = json::PoseJson {
         rotation: cj.rotation,
         translation: cj.translation,

@@ -75,6 +75,10 @@ pub struct CameraJson {
     pub cy: f64,
     #[serde(default, skip_serializing_if = "Option::is_none")]
     pub distortion: Option<Vec<f64>>,
+    /// jawtrack extension: the lens model `distortion` is for, `opencv` (the default:
+    /// 4, 5, 8, 12 or 14 coefficients) or `fisheye` (cv::fisheye's 4).
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub lens: Option<String>,
     pub rotation: [[f64; 3]; 3],
     pub translation: [f64; 3],
 }

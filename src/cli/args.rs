@@ -181,25 +181,29 @@ pub struct CameraRigArgs {
     /// resolution.
     #[arg(long)]
     pub rig: Option<PathBuf>,
-    /// Lens distortion for every camera, OpenCV's k1,k2,p1,p2[,k3] (e.g. -0.25,0.08,0,0, a
-    /// moderate barrel), replacing the camera files': written to the capture's camera files,
-    /// and the masks are drawn through it. Default: the cameras' own (calib/ has none).
+    /// Lens distortion for every camera, OpenCV's k1,k2,p1,p2[,k3[,k4,k5,k6[,s1,s2,s3,s4]]]
+    /// (e.g. -0.25,0.08,0,0, a moderate barrel), replacing the camera files': written to the
+    /// capture's camera files, and the masks are drawn through it. Default: the cameras' own
+    /// (calib/ has none).
     #[arg(long, value_delimiter = ',', allow_hyphen_values = true)]
     pub distortion: Option<Vec<f64>>,
+    /// `--distortion` gives cv::fisheye's k1,k2,k3,k4 (Kannala-Brandt).
+    #[arg(long, requires = "distortion")]
+    pub fisheye: bool,
 }
 
 impl CameraRigArgs {
-    pub fn distortion(&self) -> anyhow::Result<Option<[f64; 5]>> {
+    pub fn distortion(&self) -> anyhow::Result<Option<jawtrack::geometry::Distortion>> {
         let Some(d) = &self.distortion else {
             return Ok(None);
         };
         anyhow::ensure!(
-            (4..=5).contains(&d.len()) && d.iter().all(|x| x.is_finite()),
-            "--distortion: expected 4 or 5 finite numbers (k1,k2,p1,p2[,k3]), found {d:?}"
+            d.iter().all(|x| x.is_finite()),
+            "--distortion: every coefficient must be a finite number, found {d:?}"
         );
-        let mut k = [0.0; 5];
-        k[..d.len()].copy_from_slice(d);
-        Ok(Some(k))
+        jawtrack::geometry::Distortion::from_coefficients(d, self.fisheye)
+            .map(Some)
+            .map_err(|e| anyhow::anyhow!("--distortion: {e}"))
     }
 }
 

@@ -13,6 +13,34 @@ pub enum Command {
     Cameras(CamerasArgs),
     /// Frames of videos (anything ffmpeg reads) as CAPTURE/images/<NAME>/<frame:06>.png.
     Video(VideoArgs),
+    /// Masks from segmentation tools (per-object binary PNGs as SAM 2 is saved, or a CVAT
+    /// "Segmentation mask 1.1" export) as CAPTURE/masks/<CAMERA>/<frame:06>.png.
+    Masks(MasksArgs),
+}
+
+#[derive(clap::Args)]
+pub struct MasksArgs {
+    /// The capture folder.
+    pub capture: PathBuf,
+    /// The camera the masks are of.
+    #[arg(long)]
+    pub camera: String,
+    /// A folder with a folder of binary PNGs per object (SAM 2): `DIR/<object>/<frame>.png`.
+    #[arg(long, conflicts_with = "cvat", required_unless_present = "cvat")]
+    pub objects: Option<PathBuf>,
+    /// A CVAT "Segmentation mask 1.1" export: labelmap.txt and SegmentationClass/.
+    #[arg(long)]
+    pub cvat: Option<PathBuf>,
+    /// `LABEL=CLASS`: a source object (folder name) or CVAT label, and what it is: upper,
+    /// lower, teeth (both arches as one) or mouth (the visible mouth interior).
+    #[arg(long = "label", required = true)]
+    pub labels: Vec<String>,
+    /// Added to the source's frame numbers (a clip segmented from frame 100 on: 100).
+    #[arg(long, default_value_t = 0, allow_hyphen_values = true)]
+    pub frame_offset: i64,
+    /// Overwrite the camera's masks folder.
+    #[arg(long)]
+    pub replace: bool,
 }
 
 #[derive(Clone, Copy, clap::ValueEnum)]
@@ -38,6 +66,10 @@ pub struct CamerasArgs {
     /// world-to-camera.
     #[arg(long)]
     pub camera_to_world: bool,
+    /// The OpenCV files' 4 distortion coefficients are cv::fisheye's (Kannala-Brandt); such
+    /// files do not say so themselves.
+    #[arg(long)]
+    pub fisheye: bool,
 }
 
 #[derive(clap::Args)]
@@ -65,7 +97,53 @@ pub fn run(c: Command) -> anyhow::Result<()> {
     match c {
         Command::Cameras(a) => cameras(a),
         Command::Video(a) => videos(a),
+        Command::Masks(a) => masks(a),
     }
+}
+
+fn masks(a: MasksArgs) -> anyhow::Result<()> {
+    use jawtrack::footage::masks::{Class, Source, import_masks};
+    calib::check_name(&a.camera, &a.capture)?;
+    let labels = a
+        .labels
+        .iter()
+        .map(|l| {
+            let (name, class) = l
+                .rsplit_once('=')
+                .ok_or_else(|| anyhow::anyhow!("--label {l}: expected LABEL=CLASS"))?;
+            let class = Class::parse(class).ok_or_else(|| {
+                anyhow::anyhow!("--label {l}: `{class}` is not upper, lower, teeth or mouth")
+            })?;
+            Ok((name.to_string(), class))
+        })
+        .collect::<anyhow::Result<Vec<_>>>()?;
+    let source = match (a.objects, a.cvat) {
+        (Some(d), _) => Source::Objects(d),
+        (None, Some(d)) => Source::Cvat(d),
+        (None, None) => bail!("give --objects DIR or --cvat DIR"),
+    };
+    let r = import_masks(
+        &a.capture,
+        &a.camera,
+        &source,
+        &labels,
+        a.frame_offset,
+        a.replace,
+    )?;
+    println!(
+        "{}: {} masks -> {}",
+        a.camera,
+        r.frames,
+        a.capture.join("masks").join(&a.camera).display()
+    );
+    if r.conflicts > 0 {
+        println!(
+            "  {} pixels claimed by two arches were left unlabelled",
+            r.conflicts
+        );
+    }
+    println!("capture.json needs {}", r.masks_block);
+    Ok(())
 }
 
 fn split_named(arg: &str) -> (Option<&str>, &Path) {
@@ -93,6 +171,7 @@ fn cameras(a: CamerasArgs) -> anyhow::Result<()> {
             UnitArg::M => Unit::M,
         },
         camera_to_world: a.camera_to_world,
+        fisheye: a.fisheye,
     };
     let mut cams: Vec<ImportedCamera> = Vec::new();
     for arg in &a.files {

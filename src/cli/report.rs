@@ -68,7 +68,14 @@ pub fn capture(c: &Capture, pixels: Option<&[[f64; 3]]>) {
             mean_px(i),
             match (k.has_distortion(), k.lens_covers_the_image()) {
                 (false, _) => "no".to_string(),
-                (true, true) => "yes (models drawn through the lens)".to_string(),
+                (true, true) => format!(
+                    "{} (models drawn through the lens)",
+                    if k.distortion.is_fisheye() {
+                        "fisheye"
+                    } else {
+                        "yes"
+                    }
+                ),
                 (true, false) => format!(
                     "yes, but the model folds back inside the image, {:.0} px from the centre: \
                      nothing is drawn past it",

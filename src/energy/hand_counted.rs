@@ -15,7 +15,7 @@ pub fn camera() -> Camera {
         fy: 100.0,
         cx: 50.0,
         cy: 40.0,
-        distortion: [0.0; 5],
+        distortion: crate::geometry::Distortion::NONE,
         camera_from_world: Pose::IDENTITY,
     }
 }

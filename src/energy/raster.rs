@@ -473,6 +473,7 @@ pub fn render_labels(cam: &Camera, items: &[(&Mesh, &Pose, u8, u8)]) -> Vec<u8> 
 #[cfg(test)]
 mod tests {
     use super::*;
+    use crate::geometry::Distortion;
 
     fn camera(width: u32, height: u32, cx: f64, cy: f64) -> Camera {
         Camera {
@@ -483,7 +484,7 @@ mod tests {
             fy: 100.0,
             cx,
             cy,
-            distortion: [0.0; 5],
+            distortion: Distortion::NONE,
             camera_from_world: Pose::IDENTITY,
         }
     }
@@ -605,9 +606,13 @@ mod tests {
         let pose = Pose::from_euler_tuple(&[0.2, -0.3, 0.4, 1.0, 2.0, 5.0]);
         // Also through a strong barrel lens and a pincushion one.
         for distortion in [
-            [0.0; 5],
-            [-0.4, 0.1, 0.002, 0.001, 0.0],
-            [0.3, 0.0, 0.0, 0.0, 0.0],
+            Distortion::NONE,
+            Distortion::brown([-0.4, 0.1, 0.002, 0.001, 0.0]),
+            Distortion::brown([0.3, 0.0, 0.0, 0.0, 0.0]),
+            Distortion::OpenCv([
+                0.6, 0.2, 0.001, 0.0, 0.0, 1.0, 0.3, 0.0, 0.002, 0.0, -0.001, 0.0,
+            ]),
+            Distortion::Fisheye([0.1, -0.05, 0.01, -0.002]),
         ] {
             let cam = Camera {
                 distortion,

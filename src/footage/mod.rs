@@ -2,5 +2,6 @@
 //! here writes the capture format's files; nothing reads back from the layers above.
 
 pub mod calib;
+pub mod masks;
 pub mod sync;
 pub mod video;

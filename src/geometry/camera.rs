@@ -1,9 +1,9 @@
 //! The OpenCV pinhole camera: x right, y down, z forward; pixel (u, v) = (column, row) with
-//! the centre of the top-left pixel at (0, 0). Distortion is OpenCV's (k1, k2, p1, p2, k3).
+//! the centre of the top-left pixel at (0, 0). Distortion is OpenCV's ([`Distortion`]).
 
 use nalgebra::{Matrix3x4, Vector2, Vector3};
 
-use super::Pose;
+use super::{Distortion, Pose};
 
 #[derive(Clone, Debug, PartialEq)]
 pub struct Camera {
@@ -14,14 +14,13 @@ pub struct Camera {
     pub fy: f64,
     pub cx: f64,
     pub cy: f64,
-    /// OpenCV order (k1, k2, p1, p2, k3).
-    pub distortion: [f64; 5],
+    pub distortion: Distortion,
     pub camera_from_world: Pose,
 }
 
 impl Camera {
     pub fn has_distortion(&self) -> bool {
-        self.distortion.iter().any(|&k| k != 0.0)
+        self.distortion.is_some()
     }
 
     /// The same camera for an image of `width x height` (e.g. half-resolution masks):
@@ -40,52 +39,10 @@ impl Camera {
         }
     }
 
-    /// The largest r² (of undistorted normalised coordinates) up to which the radial
-    /// distortion's image radius r·(1 + k1 r² + k2 r⁴ + k3 r⁶) keeps growing with r. Beyond it
-    /// the lens model folds back and would map points far outside the view into the image,
-    /// so projections stop there. Infinite without radial distortion or when the model never
-    /// folds (checked out to r = 20, 87° off the axis).
+    /// The largest r² (of undistorted normalised coordinates) up to which the lens's image
+    /// radius keeps growing ([`Distortion::limit_r2`]); projections stop there.
     pub fn lens_limit_r2(&self) -> f64 {
-        let [k1, k2, _, _, k3] = self.distortion;
-        // d(image radius)/dr as a cubic in t = r²; it is 1 at t = 0.
-        let (a, b, c) = (3.0 * k1, 5.0 * k2, 7.0 * k3);
-        let slope = |t: f64| 1.0 + t * (a + t * (b + t * c));
-        const T_MAX: f64 = 400.0;
-        // Between the cubic's turning points it is monotonic: find the first stretch where
-        // it reaches zero, then bisect there.
-        let mut points = [0.0, T_MAX, T_MAX, T_MAX];
-        let (qa, qb, qc) = (3.0 * c, 2.0 * b, a);
-        let turning: [f64; 2] = if qa != 0.0 {
-            let disc = qb * qb - 4.0 * qa * qc;
-            let sq = disc.max(0.0).sqrt();
-            [(-qb - sq) / (2.0 * qa), (-qb + sq) / (2.0 * qa)]
-        } else if qb != 0.0 {
-            [-qc / qb; 2]
-        } else {
-            [T_MAX; 2]
-        };
-        for (slot, t) in points[2..].iter_mut().zip(turning) {
-            if t > 0.0 && t < T_MAX {
-                *slot = t;
-            }
-        }
-        points.sort_by(f64::total_cmp);
-        for w in points.windows(2) {
-            let (mut lo, mut hi) = (w[0], w[1]);
-            if slope(hi) > 0.0 {
-                continue;
-            }
-            for _ in 0..100 {
-                let mid = 0.5 * (lo + hi);
-                if slope(mid) > 0.0 {
-                    lo = mid;
-                } else {
-                    hi = mid;
-                }
-            }
-            return lo;
-        }
-        f64::INFINITY
+        self.distortion.limit_r2()
     }
 
     /// World point to camera coordinates.
@@ -96,12 +53,7 @@ impl Camera {
     /// How far from the principal point (distorted, normalised) the lens model reaches before
     /// it folds back: the image radius at [`Camera::lens_limit_r2`]; infinite if it never does.
     pub fn lens_reach(&self) -> f64 {
-        let limit = self.lens_limit_r2();
-        if limit.is_infinite() {
-            return f64::INFINITY;
-        }
-        let [k1, k2, _, _, k3] = self.distortion;
-        limit.sqrt() * (1.0 + limit * (k1 + limit * (k2 + limit * k3)))
+        self.distortion.reach()
     }
 
     /// Whether the whole image lies within [`Camera::lens_reach`]. When it does not, the model
@@ -118,17 +70,13 @@ impl Camera {
 
     /// Apply the distortion model to normalised image coordinates.
     pub fn distort(&self, n: Vector2<f64>) -> Vector2<f64> {
-        let [k1, k2, p1, p2, k3] = self.distortion;
-        let (x, y) = (n.x, n.y);
-        let r2 = x * x + y * y;
-        let radial = 1.0 + r2 * (k1 + r2 * (k2 + r2 * k3));
-        Vector2::new(
-            x * radial + 2.0 * p1 * x * y + p2 * (r2 + 2.0 * x * x),
-            y * radial + p1 * (r2 + 2.0 * y * y) + 2.0 * p2 * x * y,
-        )
+        let [x, y] = self.distortion.apply(n.x, n.y);
+        Vector2::new(x, y)
     }
 
-    /// Invert [`Camera::distort`] by fixed-point iteration (as OpenCV's `undistortPoints`).
+    /// Invert [`Camera::distort`] by Newton's method (the Jacobian by central differences),
+    /// which converges where fixed-point iteration (OpenCV's `undistortPoints`) does not: a
+    /// fisheye's or a strong rational lens's image corners.
     pub fn undistort_normalised(&self, d: Vector2<f64>) -> Vector2<f64> {
         if !self.has_distortion() {
             return d;
@@ -136,9 +84,20 @@ impl Camera {
         let mut n = d;
         for _ in 0..50 {
             let err = self.distort(n) - d;
-            n -= err;
             if err.norm_squared() < 1e-24 {
                 break;
+            }
+            let h = 1e-7;
+            let dx = (self.distort(n + Vector2::new(h, 0.0))
+                - self.distort(n - Vector2::new(h, 0.0)))
+                / (2.0 * h);
+            let dy = (self.distort(n + Vector2::new(0.0, h))
+                - self.distort(n - Vector2::new(0.0, h)))
+                / (2.0 * h);
+            let j = nalgebra::Matrix2::from_columns(&[dx, dy]);
+            match j.try_inverse() {
+                Some(inv) => n -= inv * err,
+                None => n -= err,
             }
         }
         n
@@ -190,7 +149,7 @@ mod tests {
             fy: 1390.0,
             cx: 959.5,
             cy: 539.5,
-            distortion: [-0.12, 0.05, 0.001, -0.0007, -0.01],
+            distortion: Distortion::brown([-0.12, 0.05, 0.001, -0.0007, -0.01]),
             camera_from_world: Pose::from_euler_tuple(&[0.05, -0.3, 0.02, 10.0, -3.0, 200.0]),
         }
     }
@@ -198,7 +157,7 @@ mod tests {
     #[test]
     fn scaling_keeps_pixel_centres_consistent() {
         let cam = Camera {
-            distortion: [0.0; 5],
+            distortion: Distortion::NONE,
             ..test_camera()
         };
         let half = cam.scaled_to(960, 540);
@@ -212,8 +171,8 @@ mod tests {
 
     #[test]
     fn the_lens_limit_is_where_the_radial_model_turns_back() {
-        let with = |distortion| Camera {
-            distortion,
+        let with = |k| Camera {
+            distortion: Distortion::brown(k),
             ..test_camera()
         };
         // r (1 - 0.5 r²) peaks at r² = 2/3.

@@ -1,6 +1,7 @@
 //! Geometry: SE(3)/se(3), the OpenCV camera, triangulation and rigid fitting.
 
 mod camera;
+mod distortion;
 pub mod least_squares;
 #[cfg(test)]
 pub(crate) mod lie_suite;
@@ -9,6 +10,7 @@ mod se3;
 mod triangulate;
 
 pub use camera::Camera;
+pub use distortion::Distortion;
 pub use rigid_fit::{RigidFitError, fit_rigid};
 pub use se3::{Pose, hat, jaw_pose, so3_exp, so3_log};
 pub use triangulate::{TriangulationError, triangulate};

@@ -61,7 +61,7 @@ mod tests {
             fy: 1000.0,
             cx: 959.5,
             cy: 539.5,
-            distortion: [-0.05, 0.01, 0.0, 0.0, 0.0],
+            distortion: crate::geometry::Distortion::brown([-0.05, 0.01, 0.0, 0.0, 0.0]),
             camera_from_world: world_from_cam.inverse(),
         }
     }

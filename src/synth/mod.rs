@@ -22,7 +22,7 @@ use crate::capture::mesh::{BoiMarking, mark_boi};
 use crate::capture::{Arch, ArchPoses, BoiSource, Mesh};
 use crate::energy::raster::render_labels;
 use crate::error::{Error, Result};
-use crate::geometry::{Camera, Pose};
+use crate::geometry::{Camera, Distortion, Pose};
 use exercise::exercise_controls;
 use write::write_capture;
 
@@ -45,7 +45,18 @@ pub const MOUTH_LABEL: u8 = 40;
 /// with distortion. At the synthetic rig's full resolution it moves a point the pinhole camera
 /// puts in an image corner in by about 200 pixels, and one 200 pixels from the centre, where
 /// the arches are, by about 2.5.
-pub const BARREL_LENS: [f64; 5] = [-0.25, 0.08, 0.001, -0.0005, 0.0];
+pub const BARREL_LENS: Distortion = Distortion::OpenCv([
+    -0.25, 0.08, 0.001, -0.0005, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0,
+]);
+
+/// A strong rational lens with thin-prism terms (OpenCV's 12 coefficients), for tests of the
+/// full model.
+pub const RATIONAL_LENS: Distortion = Distortion::OpenCv([
+    0.8, 0.3, 0.0008, -0.0006, 0.01, 1.05, 0.45, 0.02, 0.001, -0.0002, -0.0007, 0.0001,
+]);
+
+/// A fisheye (cv::fisheye's k1..k4) of the kind a GoPro's wide mode needs, for tests.
+pub const FISHEYE_LENS: Distortion = Distortion::Fisheye([0.05, -0.02, 0.004, -0.0006]);
 
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
 pub enum Preset {
@@ -97,10 +108,10 @@ pub struct SynthOptions {
     /// A folder of camera files (`<name>.json`, the capture format's) to film with instead of
     /// the rig of calib/; every camera's masks are written at half its resolution.
     pub rig: Option<PathBuf>,
-    /// Every camera's lens distortion, OpenCV's (k1, k2, p1, p2, k3), replacing the camera
-    /// files': written to the capture's camera files, and the masks are drawn through it.
-    /// `None` keeps the cameras' own (calib/ has none).
-    pub distortion: Option<[f64; 5]>,
+    /// Every camera's lens (any OpenCV model or the fisheye), replacing the camera files':
+    /// written to the capture's camera files, and the masks are drawn through it. `None`
+    /// keeps the cameras' own (calib/ has none).
+    pub distortion: Option<Distortion>,
     /// Label the visible mouth interior (the lip opening less the teeth) in the masks of
     /// the presets with lips (`masks.mouth`); false writes teeth masks alone.
     pub mouth: bool,

@@ -71,7 +71,8 @@ pub(super) fn write_capture(
             Some(d) => {
                 let mut cj: CameraJson =
                     serde_json::from_str(json).expect("read as a camera file before");
-                cj.distortion = Some(d.to_vec());
+                cj.distortion = Some(d.coefficients());
+                cj.lens = d.is_fisheye().then(|| "fisheye".to_string());
                 write_json_atomic(&path, &cj)?;
             }
         }

@@ -33,6 +33,21 @@ pub fn lens_template(preset: Preset) -> &'static Path {
     })
 }
 
+/// The per-arch realistic template filmed through the rational lens (0) or the fisheye (1)
+/// ([`RATIONAL_LENS`](jawtrack::synth::RATIONAL_LENS), [`FISHEYE_LENS`](jawtrack::synth::FISHEYE_LENS)),
+/// written once per test binary.
+pub fn model_lens_template(which: usize) -> &'static Path {
+    static CELLS: [OnceLock<tempfile::TempDir>; 2] = [const { OnceLock::new() }; 2];
+    let lens = [
+        jawtrack::synth::RATIONAL_LENS,
+        jawtrack::synth::FISHEYE_LENS,
+    ][which];
+    written_once(&CELLS[which], || SynthOptions {
+        distortion: Some(lens),
+        ..template_options(Preset::Realistic)
+    })
+}
+
 /// Six frames, a segment of the exercise a frame: six different jaw poses.
 fn template_options(preset: Preset) -> SynthOptions {
     SynthOptions {

@@ -82,7 +82,12 @@ pub fn energy(a: EnergyArgs) -> anyhow::Result<()> {
         ..OpenOptions::default()
     };
     let lens = Some(jawtrack::synth::BARREL_LENS);
-    type Case<'a> = (String, Option<&'a Path>, OpenOptions, Option<[f64; 5]>);
+    type Case<'a> = (
+        String,
+        Option<&'a Path>,
+        OpenOptions,
+        Option<jawtrack::geometry::Distortion>,
+    );
     let mut cases: Vec<Case> = vec![
         ("procedural".into(), None, full, None),
         ("procedural, barrel lens".into(), None, full, lens),

@@ -34,12 +34,11 @@ pub struct DrawRecord {
     pub layer: u32,
     pub arch_bit: u32,
     pub _pad: [u32; 2],
-    /// The camera's lens (k1, k2, p1, p2), k3, its limit (r²) and whether it has one.
-    pub lens: [f32; 4],
-    pub lens_k3: f32,
+    /// The camera's lens ([`Lens::k`] in three fours), its limit (r²) and its model (0: none).
+    pub lens: [[f32; 4]; 3],
     pub lens_limit_r2: f32,
-    pub distorted: u32,
-    pub _pad2: u32,
+    pub lens_model: u32,
+    pub _pad2: [u32; 2],
 }
 
 #[repr(C)]
@@ -245,11 +244,12 @@ impl GpuEnergy {
                     layer: tile.camera as u32,
                     arch_bit: arch.mask_bit() as u32,
                     _pad: [0; 2],
-                    lens: lens.map_or([0.0; 4], |l| [l.k1, l.k2, l.p1, l.p2]),
-                    lens_k3: lens.map_or(0.0, |l| l.k3),
+                    lens: lens.map_or([[0.0; 4]; 3], |l| {
+                        [0, 4, 8].map(|i| [l.k[i], l.k[i + 1], l.k[i + 2], l.k[i + 3]])
+                    }),
                     lens_limit_r2: lens.map_or(0.0, |l| l.limit_r2),
-                    distorted: lens.is_some() as u32,
-                    _pad2: 0,
+                    lens_model: lens.map_or(0, |l| l.model),
+                    _pad2: [0; 2],
                 }
             };
             draws.push(record(arch.other(), other, other_class));

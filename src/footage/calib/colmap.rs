@@ -8,15 +8,16 @@ use std::path::{Path, PathBuf};
 
 use nalgebra::{Quaternion, UnitQuaternion, Vector3};
 
-use super::{ImportOptions, ImportedCamera, distortion_vector, extrinsics};
+use super::{ImportOptions, ImportedCamera, extrinsics, lens_from};
 use crate::capture::read::read_text;
 use crate::error::{Error, Result};
+use crate::geometry::Distortion;
 
 /// A camera model of cameras.txt: intrinsics and OpenCV distortion from its parameters.
 struct Intrinsics {
     size: (i64, i64),
     k: [f64; 4],
-    distortion: Vec<f64>,
+    distortion: Distortion,
 }
 
 /// Read the cameras of a COLMAP text model: `source` is the model's folder, or its
@@ -101,28 +102,29 @@ fn read_cameras_txt(path: &Path) -> Result<BTreeMap<u64, Intrinsics>> {
         let (k, distortion) = match model {
             "SIMPLE_PINHOLE" => {
                 want(3)?;
-                ([p[0], p[0], p[1] - h, p[2] - h], vec![])
+                ([p[0], p[0], p[1] - h, p[2] - h], Distortion::NONE)
             }
             "PINHOLE" => {
                 want(4)?;
-                ([p[0], p[1], p[2] - h, p[3] - h], vec![])
+                ([p[0], p[1], p[2] - h, p[3] - h], Distortion::NONE)
             }
             "SIMPLE_RADIAL" => {
                 want(4)?;
-                ([p[0], p[0], p[1] - h, p[2] - h], vec![p[3], 0.0, 0.0, 0.0])
+                let d = lens_from(&[p[3]], false, path, &field)?;
+                ([p[0], p[0], p[1] - h, p[2] - h], d)
             }
             "RADIAL" => {
                 want(5)?;
-                ([p[0], p[0], p[1] - h, p[2] - h], vec![p[3], p[4], 0.0, 0.0])
+                let d = lens_from(&[p[3], p[4]], false, path, &field)?;
+                ([p[0], p[0], p[1] - h, p[2] - h], d)
             }
-            "OPENCV" => {
-                want(8)?;
-                ([p[0], p[1], p[2] - h, p[3] - h], p[4..8].to_vec())
-            }
-            "FULL_OPENCV" => {
-                want(12)?;
-                // k1 k2 p1 p2 k3 k4 k5 k6: OpenCV's order already.
-                let d = distortion_vector(&p[4..12], path, &field)?;
+            "OPENCV" | "FULL_OPENCV" | "OPENCV_FISHEYE" => {
+                want(match model {
+                    "OPENCV" | "OPENCV_FISHEYE" => 8,
+                    _ => 12,
+                })?;
+                // k1 k2 p1 p2 [k3 k4 k5 k6], or the fisheye's k1..k4: OpenCV's order already.
+                let d = lens_from(&p[4..], model == "OPENCV_FISHEYE", path, &field)?;
                 ([p[0], p[1], p[2] - h, p[3] - h], d)
             }
             other => {
@@ -131,7 +133,7 @@ fn read_cameras_txt(path: &Path) -> Result<BTreeMap<u64, Intrinsics>> {
                     &field,
                     format!(
                         "camera model {other} is not supported: use SIMPLE_PINHOLE, PINHOLE, \
-                         SIMPLE_RADIAL, RADIAL, OPENCV or FULL_OPENCV"
+                         SIMPLE_RADIAL, RADIAL, OPENCV, FULL_OPENCV or OPENCV_FISHEYE"
                     ),
                 ));
             }
@@ -234,7 +236,7 @@ fn read_images_txt(
             path,
             intr.size,
             intr.k,
-            intr.distortion.clone(),
+            intr.distortion,
             pose,
             vec![format!("from image `{image}`")],
         )?;
@@ -300,7 +302,7 @@ mod tests {
         assert_eq!((cams[0].json.cx, cams[0].json.cy), (959.5, 539.5));
         assert_eq!(
             cams[0].json.distortion,
-            Some(vec![-0.1, 0.02, 0.001, -0.002])
+            Some(vec![-0.1, 0.02, 0.001, -0.002, 0.0])
         );
         assert!((cams[0].centre() - Vector3::new(0.0, 0.0, -200.0)).norm() < 1e-9);
         assert_eq!(cams[1].name, "side");

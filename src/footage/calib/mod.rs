@@ -20,7 +20,7 @@ pub use opencv::read_opencv;
 use crate::capture::json::CameraJson;
 use crate::capture::{camera_from_json, write_json_atomic};
 use crate::error::{Error, Result};
-use crate::geometry::{Camera, Pose};
+use crate::geometry::{Camera, Distortion, Pose};
 
 /// The length unit of a calibration's translations (the capture format's is the millimetre).
 #[derive(Debug, Clone, Copy, PartialEq, Eq, Default)]
@@ -48,6 +48,8 @@ pub struct ImportOptions {
     /// The file's extrinsics map camera to world (a camera's pose), not world to camera
     /// (OpenCV's and COLMAP's convention, `x_cam = R·x_world + t`).
     pub camera_to_world: bool,
+    /// The OpenCV files' 4 coefficients are `cv::fisheye`'s (its files do not say so).
+    pub fisheye: bool,
 }
 
 /// A camera read from a calibration file, checked as the capture reader checks one.
@@ -69,7 +71,7 @@ impl ImportedCamera {
         source: &Path,
         size: (i64, i64),
         k: [f64; 4],
-        distortion: Vec<f64>,
+        distortion: Distortion,
         camera_from_world: Pose,
         notes: Vec<String>,
     ) -> Result<ImportedCamera> {
@@ -81,7 +83,8 @@ impl ImportedCamera {
             fy: k[1],
             cx: k[2],
             cy: k[3],
-            distortion: (!distortion.is_empty()).then_some(distortion),
+            distortion: distortion.is_some().then(|| distortion.coefficients()),
+            lens: distortion.is_fisheye().then(|| "fisheye".to_string()),
             rotation: camera_from_world.rotation_rows(),
             translation: [t.x, t.y, t.z],
         };
@@ -121,31 +124,18 @@ fn extrinsics(
     }
 }
 
-/// OpenCV's distortion vector as the capture format takes it: trailing zeros beyond the
-/// fifth coefficient dropped (OpenCV writes 8 or 14 with the rational terms off). What
-/// remains must be the (k1, k2, p1, p2[, k3]) model.
-fn distortion_vector(values: &[f64], path: &Path, field: &str) -> Result<Vec<f64>> {
+/// A lens from a calibration's coefficient list: OpenCV's model (1 to 14 coefficients; fewer
+/// than 4 are the same model with zeros after) or the fisheye's 4.
+fn lens_from(values: &[f64], fisheye: bool, path: &Path, field: &str) -> Result<Distortion> {
     let mut d = values.to_vec();
-    while d.len() > 5 && d.last() == Some(&0.0) {
-        d.pop();
+    if !fisheye && d.len() < 4 && !d.is_empty() {
+        d.resize(4, 0.0);
     }
-    match d.len() {
-        0 | 4 | 5 => Ok(d),
-        1..=3 => {
-            // (k1), (k1, k2) and (k1, k2, p1) are the same model with zeros after.
-            d.resize(4, 0.0);
-            Ok(d)
-        }
-        n => Err(Error::invalid(
-            path,
-            field,
-            format!(
-                "{} coefficients with the rational or thin-prism terms set ({n} after trailing zeros): \
-                 only the (k1, k2, p1, p2, k3) model is supported in camera files",
-                values.len()
-            ),
-        )),
+    if d.is_empty() {
+        return Ok(Distortion::NONE);
     }
+    Distortion::from_coefficients(&d, fisheye)
+        .map_err(|problem| Error::invalid(path, field, problem))
 }
 
 /// Write each camera to `capture/cameras/<name>.json` (atomically); returns the paths.

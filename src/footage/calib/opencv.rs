@@ -6,10 +6,10 @@ use std::path::Path;
 use nalgebra::{Matrix3, Rotation3, Vector3};
 
 use super::filestorage::{self, Node};
-use super::{ImportOptions, ImportedCamera, distortion_vector, extrinsics};
+use super::{ImportOptions, ImportedCamera, extrinsics, lens_from};
 use crate::capture::json::ROTATION_TOLERANCE;
 use crate::error::{Error, Result};
-use crate::geometry::{Pose, so3_exp};
+use crate::geometry::{Distortion, Pose, so3_exp};
 
 const INTRINSICS: &[&str] = &[
     "camera_matrix",
@@ -126,20 +126,16 @@ pub(super) fn camera_from_storage(
         Node::Text(t) => Some(t.to_ascii_lowercase()),
         _ => None,
     });
-    if let Some(m) = &model
-        && ["fisheye", "equidistant", "kannala_brandt", "opencv_fisheye"].contains(&m.as_str())
-    {
-        return Err(Error::invalid(
-            path,
-            MODEL[0],
-            format!("the `{m}` lens model is not supported in camera files yet"),
-        ));
-    }
+    // cv::fisheye's files carry no model name; ROS's camera_info says `equidistant`.
+    let fisheye = options.fisheye
+        || model.as_deref().is_some_and(|m| {
+            ["fisheye", "equidistant", "kannala_brandt", "opencv_fisheye"].contains(&m)
+        });
     let distortion = match lookup(root, DISTORTION) {
-        Some((df, dn)) => distortion_vector(numbers(dn, path, df)?.2, path, df)?,
+        Some((df, dn)) => lens_from(numbers(dn, path, df)?.2, fisheye, path, df)?,
         None => {
             notes.push("no distortion coefficients: a pinhole lens".into());
-            Vec::new()
+            Distortion::NONE
         }
     };
 
@@ -298,7 +294,7 @@ mod tests {
         ));
         let options = ImportOptions {
             unit: Unit::M,
-            camera_to_world: false,
+            ..ImportOptions::default()
         };
         let ca = camera_from_storage(&a, Path::new("a.yml"), "a", &options).unwrap();
         let cb = camera_from_storage(&b, Path::new("b.yml"), "b", &options).unwrap();
@@ -342,17 +338,21 @@ mod tests {
         .unwrap_err()
         .to_string();
         assert!(e.contains("`R`") && e.contains("not a rotation"), "{e}");
-        let e = camera_from_storage(
-            &yaml(&format!(
-                "{K}image_size: [640, 480]\nD: [0.1, 0, 0, 0, 0, 0.2, 0, 0]\n"
-            )),
-            p,
-            "c",
-            &o,
-        )
-        .unwrap_err()
-        .to_string();
-        assert!(e.contains("`D`") && e.contains("rational"), "{e}");
+        let with_d = |d: &str| {
+            camera_from_storage(
+                &yaml(&format!("{K}image_size: [640, 480]\n{d}\n")),
+                p,
+                "c",
+                &o,
+            )
+        };
+        let e = with_d("D: [0.1, 0, 0, 0, 0, 0.2]").unwrap_err().to_string();
+        assert!(e.contains("`D`") && e.contains("found 6"), "{e}");
+        // A rational model, and a fisheye by ROS's model name.
+        let c = with_d("D: [0.1, 0, 0, 0, 0, 0.2, 0, 0]").unwrap();
+        assert_eq!(c.json.distortion.as_ref().map(Vec::len), Some(8));
+        let c = with_d("distortion_model: equidistant\nD: [0.1, 0.01, 0, 0]").unwrap();
+        assert_eq!(c.json.lens.as_deref(), Some("fisheye"));
         // Rational terms written as zeros are the five-coefficient model.
         let c = camera_from_storage(
             &yaml(&format!(

@@ -1,0 +1,380 @@
+//! Masks in from segmentation tools, written as the capture format's masks/<camera>/:
+//!
+//! - **Per-object binary PNGs**, as SAM 2's video predictor is commonly saved: a folder per
+//!   object (`DIR/<object>/<frame>.png`), a pixel belonging to the object when it is not 0.
+//! - **Colour-coded PNGs with a label map**, as CVAT's "Segmentation mask 1.1" export writes
+//!   them: `DIR/labelmap.txt` (`name:r,g,b::` per line) and `DIR/SegmentationClass/<frame>.png`.
+//!
+//! Each source label is mapped to a class: the upper arch, the lower arch, teeth (both arches
+//! as one, for the combined mode) or the visible mouth interior. Frame numbers are the digits
+//! at the end of each file's stem (`frame_000012.png` is 12), plus an offset.
+
+use std::collections::BTreeMap;
+use std::path::{Path, PathBuf};
+
+use crate::capture::read::read_text;
+use crate::capture::write_atomic;
+use crate::error::{Error, Result};
+
+/// The class a source label becomes.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, PartialOrd, Ord)]
+pub enum Class {
+    Upper,
+    Lower,
+    Teeth,
+    Mouth,
+}
+
+/// The pixel values written (those `jawtrack synth` writes): valid in either mask mode.
+pub const UPPER_VALUE: u8 = 85;
+pub const LOWER_VALUE: u8 = 170;
+pub const TEETH_VALUE: u8 = 255;
+pub const MOUTH_VALUE: u8 = 40;
+
+impl Class {
+    fn value(self) -> u8 {
+        match self {
+            Class::Upper => UPPER_VALUE,
+            Class::Lower => LOWER_VALUE,
+            Class::Teeth => TEETH_VALUE,
+            Class::Mouth => MOUTH_VALUE,
+        }
+    }
+
+    pub fn parse(s: &str) -> Option<Class> {
+        Some(match s {
+            "upper" => Class::Upper,
+            "lower" => Class::Lower,
+            "teeth" => Class::Teeth,
+            "mouth" => Class::Mouth,
+            _ => return None,
+        })
+    }
+}
+
+/// Where the masks come from.
+#[derive(Debug, Clone)]
+pub enum Source {
+    /// A folder per object of binary PNGs.
+    Objects(PathBuf),
+    /// A CVAT "Segmentation mask 1.1" export: labelmap.txt and SegmentationClass/.
+    Cvat(PathBuf),
+}
+
+/// What was written, for the user.
+#[derive(Debug, Clone, Default)]
+pub struct Imported {
+    pub frames: usize,
+    /// Pixels two classes claimed (left unlabelled: neither is sure).
+    pub conflicts: u64,
+    /// The capture.json `masks` block these masks need.
+    pub masks_block: String,
+}
+
+/// The number at the end of a file stem.
+fn frame_number(path: &Path) -> Option<i64> {
+    let stem = path.file_stem()?.to_str()?;
+    let digits: String = stem
+        .chars()
+        .rev()
+        .take_while(|c| c.is_ascii_digit())
+        .collect::<Vec<_>>()
+        .into_iter()
+        .rev()
+        .collect();
+    digits.parse().ok()
+}
+
+fn pngs(dir: &Path) -> Result<BTreeMap<i64, PathBuf>> {
+    let rd = std::fs::read_dir(dir).map_err(|error| Error::Read {
+        path: dir.to_path_buf(),
+        error,
+    })?;
+    let mut out = BTreeMap::new();
+    for e in rd.flatten() {
+        let p = e.path();
+        if p.extension()
+            .and_then(|x| x.to_str())
+            .map(str::to_ascii_lowercase)
+            .as_deref()
+            != Some("png")
+        {
+            continue;
+        }
+        let Some(n) = frame_number(&p) else {
+            return Err(Error::invalid(
+                &p,
+                "file name",
+                "has no frame number at the end of its name",
+            ));
+        };
+        if let Some(other) = out.insert(n, p.clone()) {
+            return Err(Error::invalid(
+                &p,
+                "file name",
+                format!("frame {n} again (also {})", other.display()),
+            ));
+        }
+    }
+    Ok(out)
+}
+
+fn open_image(path: &Path) -> Result<image::DynamicImage> {
+    let (w, h) = image::image_dimensions(path).map_err(|e| Error::Image {
+        path: path.to_path_buf(),
+        problem: e.to_string(),
+    })?;
+    if w > 1 << 15 || h > 1 << 15 {
+        return Err(Error::invalid(
+            path,
+            "size",
+            format!("{w}x{h} is beyond 32768 px a side"),
+        ));
+    }
+    image::open(path).map_err(|e| Error::Image {
+        path: path.to_path_buf(),
+        problem: e.to_string(),
+    })
+}
+
+/// The CVAT label map: name → colour.
+fn read_labelmap(path: &Path) -> Result<BTreeMap<String, [u8; 3]>> {
+    let text = read_text(path, "CVAT label map")?;
+    let mut out = BTreeMap::new();
+    for (i, line) in text.lines().enumerate() {
+        let line = line.trim();
+        if line.is_empty() || line.starts_with('#') {
+            continue;
+        }
+        let field = format!("line {}", i + 1);
+        let mut parts = line.split(':');
+        let (Some(name), Some(colour)) = (parts.next(), parts.next()) else {
+            return Err(Error::invalid(
+                path,
+                &field,
+                "expected name:r,g,b:parts:actions",
+            ));
+        };
+        let c: Vec<u8> = colour
+            .split(',')
+            .map(|v| v.trim().parse::<u8>())
+            .collect::<std::result::Result<_, _>>()
+            .map_err(|_| {
+                Error::invalid(path, &field, format!("`{colour}` is not r,g,b (0-255)"))
+            })?;
+        let [r, g, b] = c[..] else {
+            return Err(Error::invalid(
+                path,
+                &field,
+                format!("`{colour}` is not r,g,b"),
+            ));
+        };
+        out.insert(name.to_string(), [r, g, b]);
+    }
+    Ok(out)
+}
+
+/// Write masks/<camera>/<frame:06>.png under `capture` from `source`, each source label in
+/// `labels` (label → class) becoming its class's value. Refuses to write into a folder that
+/// holds masks unless `replace`.
+pub fn import_masks(
+    capture: &Path,
+    camera: &str,
+    source: &Source,
+    labels: &[(String, Class)],
+    frame_offset: i64,
+    replace: bool,
+) -> Result<Imported> {
+    let classes: Vec<Class> = labels.iter().map(|l| l.1).collect();
+    let has = |c: Class| classes.contains(&c);
+    if has(Class::Teeth) && (has(Class::Upper) || has(Class::Lower)) {
+        return Err(Error::invalid(
+            capture,
+            "labels",
+            "teeth (combined) and upper/lower (per arch) cannot be mixed",
+        ));
+    }
+    if !(has(Class::Teeth) || has(Class::Upper) || has(Class::Lower)) {
+        return Err(Error::invalid(
+            capture,
+            "labels",
+            "no label is mapped to teeth, upper or lower",
+        ));
+    }
+    let out_dir = capture.join("masks").join(camera);
+    if !replace
+        && out_dir.is_dir()
+        && std::fs::read_dir(&out_dir)
+            .map(|mut d| d.next().is_some())
+            .unwrap_or(false)
+    {
+        return Err(Error::invalid(
+            &out_dir,
+            "output",
+            "holds masks already: pass --replace to overwrite them",
+        ));
+    }
+    // Per frame, per class, the source image's pixels that belong to it.
+    let mut frames: BTreeMap<i64, Vec<(Class, PathBuf)>> = BTreeMap::new();
+    let colours = match source {
+        Source::Objects(dir) => {
+            for (object, class) in labels {
+                let sub = dir.join(object);
+                if !sub.is_dir() {
+                    return Err(Error::Missing {
+                        path: sub,
+                        what: format!("object folder `{object}`"),
+                    });
+                }
+                for (n, p) in pngs(&sub)? {
+                    frames.entry(n).or_default().push((*class, p));
+                }
+            }
+            None
+        }
+        Source::Cvat(dir) => {
+            let map = read_labelmap(&dir.join("labelmap.txt"))?;
+            let mut colours = Vec::new();
+            for (name, class) in labels {
+                let c = map.get(name).ok_or_else(|| {
+                    Error::invalid(
+                        dir.join("labelmap.txt"),
+                        name,
+                        format!(
+                            "no such label; the map has {}",
+                            map.keys().cloned().collect::<Vec<_>>().join(", ")
+                        ),
+                    )
+                })?;
+                colours.push((*c, *class));
+            }
+            // One file a frame; each pixel's class comes from its colour.
+            for (n, p) in pngs(&dir.join("SegmentationClass"))? {
+                frames.entry(n).or_default().push((Class::Teeth, p));
+            }
+            Some(colours)
+        }
+    };
+    if frames.is_empty() {
+        return Err(Error::invalid(
+            capture,
+            "masks",
+            "the source holds no PNG frames",
+        ));
+    }
+    let mut imported = Imported::default();
+    for (n, files) in &frames {
+        let frame = n + frame_offset;
+        let Ok(frame) = u32::try_from(frame) else {
+            return Err(Error::invalid(
+                &files[0].1,
+                "frame",
+                format!("frame {n} + offset {frame_offset} is negative"),
+            ));
+        };
+        let mut size = None;
+        let mut out: Vec<u8> = Vec::new();
+        let mut claimed: Vec<u8> = Vec::new();
+        let mut paint =
+            |path: &Path, w: u32, h: u32, pixel: &dyn Fn(usize) -> Option<Class>| -> Result<()> {
+                match size {
+                    None => {
+                        size = Some((w, h));
+                        out = vec![0; (w * h) as usize];
+                        claimed = vec![0; (w * h) as usize];
+                    }
+                    Some(s) if s != (w, h) => {
+                        return Err(Error::invalid(
+                            path,
+                            "size",
+                            format!("{w}x{h}, but frame {n}'s other masks are {}x{}", s.0, s.1),
+                        ));
+                    }
+                    _ => {}
+                }
+                for i in 0..out.len() {
+                    if let Some(class) = pixel(i) {
+                        let v = class.value();
+                        match claimed[i] {
+                            0 => {
+                                claimed[i] = 1;
+                                out[i] = v;
+                            }
+                            _ if out[i] == v => {}
+                            // Teeth over the mouth interior (a tooth's edge seen inside the lips);
+                            // two arches on one pixel: neither.
+                            _ if class == Class::Mouth => {}
+                            _ if out[i] == MOUTH_VALUE => out[i] = v,
+                            _ => {
+                                if claimed[i] == 1 {
+                                    imported.conflicts += 1;
+                                }
+                                claimed[i] = 2;
+                                out[i] = 0;
+                            }
+                        }
+                    }
+                }
+                Ok(())
+            };
+        for (class, path) in files {
+            let img = open_image(path)?;
+            let (w, h) = (img.width(), img.height());
+            match &colours {
+                None => {
+                    let grey = img.into_luma8();
+                    let raw = grey.as_raw();
+                    paint(path, w, h, &|i| (raw[i] != 0).then_some(*class))?;
+                }
+                Some(colours) => {
+                    let rgb = img.into_rgb8();
+                    let raw = rgb.as_raw();
+                    paint(path, w, h, &|i| {
+                        let px = [raw[3 * i], raw[3 * i + 1], raw[3 * i + 2]];
+                        colours
+                            .iter()
+                            .find(|(c, _)| *c == px)
+                            .map(|(_, class)| *class)
+                    })?;
+                }
+            }
+        }
+        let (w, h) = size.expect("a frame has a file");
+        let mut png = Vec::new();
+        image::ImageEncoder::write_image(
+            image::codecs::png::PngEncoder::new(&mut png),
+            &out,
+            w,
+            h,
+            image::ExtendedColorType::L8,
+        )
+        .map_err(|e| Error::invalid(&out_dir, "mask", e.to_string()))?;
+        write_atomic(&out_dir.join(format!("{frame:06}.png")), &png)?;
+        imported.frames += 1;
+    }
+    let mouth = if has(Class::Mouth) {
+        format!(", \"mouth\": {MOUTH_VALUE}")
+    } else {
+        String::new()
+    };
+    imported.masks_block = if has(Class::Teeth) {
+        format!("\"masks\": {{\"dir\": \"masks\", \"mode\": \"combined\"{mouth}}}")
+    } else {
+        format!(
+            "\"masks\": {{\"dir\": \"masks\", \"mode\": \"per-arch\", \"upper\": {UPPER_VALUE}, \"lower\": {LOWER_VALUE}{mouth}}}"
+        )
+    };
+    Ok(imported)
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn frame_numbers_come_from_the_end_of_the_name() {
+        assert_eq!(frame_number(Path::new("frame_000012.png")), Some(12));
+        assert_eq!(frame_number(Path::new("00007.png")), Some(7));
+        assert_eq!(frame_number(Path::new("mask.png")), None);
+    }
+}
