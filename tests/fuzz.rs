@@ -2,7 +2,8 @@
 //! flipped, inserted and cut; JSON values replaced by extremes) and must answer with a value or
 //! an error, never a panic, a hang or an abort. The seeds are checked in, all written by another
 //! program: the capture `fixtures/tiny-capture` and the corpus `fixtures/fuzz` (meshes in every
-//! format, a journal, a tracks.json; `make_corpus.py` there writes it).
+//! format, a journal, a tracks.json; `make_corpus.py` there writes it), and the calibration files
+//! of `fixtures/calib` (OpenCV 4 and 5, COLMAP; its `make.py`).
 //!
 //! CI runs `PROPTEST_CASES` cases per target (64 by default here); run longer with e.g.
 //! `PROPTEST_CASES=100000 cargo test --release --test fuzz`.
@@ -237,6 +238,27 @@ proptest! {
     }
 
     #[test]
+    fn calibration_files_with_bytes_edited(seed in 0..CALIB_SEEDS.len(), e in edits()) {
+        use jawtrack::footage::calib::{ImportOptions, read_colmap, read_opencv};
+        let t = tempfile::tempdir().unwrap();
+        let (dir, name) = CALIB_SEEDS[seed];
+        let calib = Path::new(env!("CARGO_MANIFEST_DIR")).join("fixtures/calib").join(dir);
+        let seed = std::fs::read(calib.join(name)).unwrap();
+        let o = ImportOptions::default();
+        if dir == "colmap" {
+            for other in ["cameras.txt", "images.txt"] {
+                std::fs::copy(calib.join(other), t.path().join(other)).unwrap();
+            }
+            std::fs::write(t.path().join(name), apply(&seed, &e)).unwrap();
+            let _ = read_colmap(t.path(), &o);
+        } else {
+            let path = t.path().join(name);
+            std::fs::write(&path, apply(&seed, &e)).unwrap();
+            let _ = read_opencv(&path, "cam", &o);
+        }
+    }
+
+    #[test]
     fn settings_with_a_value_replaced(k in any::<usize>(), with in extreme(), rig in any::<bool>()) {
         if rig {
             let mut v = serde_json::to_value(jawtrack::rig::RigSettings::default()).unwrap();
@@ -253,6 +275,15 @@ proptest! {
         }
     }
 }
+
+/// The calibration seeds: files OpenCV 4 and 5 wrote, and a COLMAP model (fixtures/calib).
+const CALIB_SEEDS: [(&str, &str); 5] = [
+    ("opencv4", "cam0.yml"),
+    ("opencv5", "cam1.xml"),
+    ("opencv4", "cam2.yml"),
+    ("colmap", "cameras.txt"),
+    ("colmap", "images.txt"),
+];
 
 /// Fuzzing starts from valid inputs: every seed reads as it is.
 #[test]

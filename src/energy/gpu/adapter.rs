@@ -1,5 +1,7 @@
 //! Choosing a GPU adapter: `JAWTRACK_ADAPTER=substring` picks one by name; otherwise real GPUs
-//! come before software ones and Vulkan/Metal/DX12 before GL.
+//! come before software ones. GL adapters are not used: on wgpu's GL backend (Mesa llvmpipe)
+//! the hand-counted scene of tests/gpu_energy.rs draws the square off its place, so the engine
+//! would disagree with the CPU reference without a word.
 
 use super::GpuError;
 
@@ -71,7 +73,19 @@ pub fn open() -> Result<GpuContext, GpuError> {
     let instance =
         wgpu::Instance::new(wgpu::InstanceDescriptor::new_without_display_handle_from_env());
     let mut adapters = pollster::block_on(instance.enumerate_adapters(wgpu::Backends::all()));
-    let available: Vec<String> = adapters.iter().map(|a| describe(&a.get_info())).collect();
+    let available: Vec<String> = adapters
+        .iter()
+        .map(|a| {
+            let info = a.get_info();
+            let unused = if info.backend == wgpu::Backend::Gl {
+                " (GL: not used)"
+            } else {
+                ""
+            };
+            format!("{}{unused}", describe(&info))
+        })
+        .collect();
+    adapters.retain(|a| a.get_info().backend != wgpu::Backend::Gl);
     if let Some(w) = &wanted {
         let w = w.to_lowercase();
         adapters.retain(|a| a.get_info().name.to_lowercase().contains(&w));

@@ -236,10 +236,21 @@ pub fn parse_xml(text: &str, path: &Path) -> Result<Node> {
             "an OpenCV XML file has <opencv_storage> at its root",
         ));
     }
-    from_xml(root, path, "")
+    from_xml(root, path, "", 0)
 }
 
-fn from_xml(el: roxmltree::Node, path: &Path, field: &str) -> Result<Node> {
+/// FileStorage documents nest a few levels; a hostile one is refused before it exhausts the
+/// stack.
+const MAX_DEPTH: usize = 64;
+
+fn from_xml(el: roxmltree::Node, path: &Path, field: &str, depth: usize) -> Result<Node> {
+    if depth > MAX_DEPTH {
+        return Err(Error::invalid(
+            path,
+            field,
+            format!("nests deeper than {MAX_DEPTH} levels"),
+        ));
+    }
     let children: Vec<roxmltree::Node> = el.children().filter(|c| c.is_element()).collect();
     if children.is_empty() {
         let text = el.text().unwrap_or("").trim();
@@ -266,7 +277,7 @@ fn from_xml(el: roxmltree::Node, path: &Path, field: &str) -> Result<Node> {
         } else {
             format!("{field}.{key}")
         };
-        let child = from_xml(c, path, &sub)?.into_matrix(path, &sub)?;
+        let child = from_xml(c, path, &sub, depth + 1)?.into_matrix(path, &sub)?;
         entries.push((key, child));
     }
     Ok(Node::Map(entries))
