@@ -10,6 +10,7 @@ pub mod capture;
 pub mod energy;
 pub mod envelope;
 pub mod error;
+pub mod export;
 pub mod footage;
 pub mod geometry;
 pub mod rig;

@@ -6,6 +6,7 @@ mod bench;
 mod demo;
 mod energy;
 mod envelope;
+mod export;
 mod import;
 mod mesh;
 mod report;
@@ -49,6 +50,8 @@ enum Command {
     Score(score::Args),
     /// Print the energy terms of a frame per camera and arch.
     Energy(energy::Args),
+    /// Tracked motion out: glTF (Blender, Maya) and CSV (degrees and mm at the incisal point).
+    Export(export::Args),
     /// Learn the three-parameter jaw rig from jaw poses, and use it.
     #[command(subcommand)]
     Rig(rig::Command),
@@ -77,6 +80,7 @@ pub fn main() -> ExitCode {
         Command::Track(a) => track::run(a),
         Command::Score(a) => score::run(a),
         Command::Energy(a) => energy::run(a),
+        Command::Export(a) => export::run(a),
         Command::Rig(c) => rig::run(c),
         Command::Envelope(c) => envelope::run(c),
         Command::Skin(c) => skin::run(c),

@@ -28,6 +28,12 @@ pub struct AnimateArgs {
     /// The mesh to pose (lower frame).
     #[arg(long)]
     pub mesh: Option<PathBuf>,
+    /// Also write the animation as glTF 2.0 (Blender, Maya): --mesh animated, --upper fixed.
+    #[arg(long, requires = "mesh")]
+    pub gltf: Option<PathBuf>,
+    /// The upper arch (upper frame) to show, fixed, in the glTF file.
+    #[arg(long, requires = "gltf")]
+    pub upper: Option<PathBuf>,
 }
 
 #[derive(clap::Args)]
@@ -85,6 +91,32 @@ pub fn animate(a: AnimateArgs) -> anyhow::Result<()> {
             }
             jawtrack::capture::mesh::write_obj(&posed, &dir.join(format!("{:06}.obj", f.frame)))?;
         }
+    }
+    if let (Some(out), Some(mesh)) = (&a.gltf, &a.mesh) {
+        use jawtrack::export::gltf::{Key as GltfKey, Part, write_gltf};
+        let (lower, _) = load_mesh(mesh)?;
+        let upper = a.upper.as_deref().map(load_mesh).transpose()?;
+        let keys: Vec<GltfKey> = frames
+            .iter()
+            .map(|f| GltfKey {
+                time_s: (f.frame as f64 / a.fps) as f32,
+                jaw: f.pose,
+            })
+            .collect();
+        let part = |name, mesh| Part {
+            name,
+            mesh,
+            colour: [0.9, 0.9, 0.88, 1.0],
+        };
+        let bytes = write_gltf(
+            upper.as_ref().map(|(u, _)| part("upper", u)).as_ref(),
+            &part("lower", &lower),
+            None,
+            &keys,
+            "rig animation",
+        );
+        jawtrack::capture::write_atomic(out, &bytes)?;
+        println!("glTF: {} keys -> {}", keys.len(), out.display());
     }
     let clamped = frames.iter().filter(|f| f.clamped).count();
     println!(
