@@ -132,8 +132,30 @@ impl Distortion {
         {
             return polynomial_limit_r2(k1, k2, k3);
         }
-        // The rational model (whose denominator may also reach zero) and the fisheye: walk out
-        // in 0.2% steps of r until the radius stops growing, then bisect.
+        // The walk below costs about 1,500 evaluations, and the energy asks for every camera's
+        // limit at every candidate pose: remember the last few lenses' (per thread).
+        thread_local! {
+            static KNOWN: std::cell::RefCell<Vec<(Distortion, f64)>> =
+                const { std::cell::RefCell::new(Vec::new()) };
+        }
+        if let Some(limit) = KNOWN.with(|k| k.borrow().iter().find(|(d, _)| d == self).map(|e| e.1))
+        {
+            return limit;
+        }
+        let limit = self.walk_limit_r2();
+        KNOWN.with(|k| {
+            let mut k = k.borrow_mut();
+            if k.len() >= 16 {
+                k.clear();
+            }
+            k.push((*self, limit));
+        });
+        limit
+    }
+
+    /// The rational model (whose denominator may also reach zero) and the fisheye: walk out in
+    /// 0.2% steps of r until the radius stops growing, then bisect.
+    fn walk_limit_r2(&self) -> f64 {
         let grows = |r: f64| {
             let h = 1e-7 * r.max(1e-3);
             let (a, b) = (self.image_radius(r - h), self.image_radius(r + h));

@@ -158,7 +158,7 @@ fn from_yaml(y: Yaml, path: &Path, field: &str) -> Result<Node> {
         })?),
         Yaml::String(s) => match number(&s) {
             // OpenCV writes `1.` and `.5`, which some YAML schemas read as text.
-            Some(v) if field.ends_with("data") => Node::scalar(v),
+            Some(v) if field.contains("data[") => Node::scalar(v),
             _ => Node::Text(s),
         },
         Yaml::Boolean(b) => Node::Text(b.to_string()),
