@@ -311,3 +311,59 @@ fn full_adaptation_to_another_joint_beats_reduced() {
         "full {full} reduced {reduced}"
     );
 }
+
+/// Animator units: zero at the rest bite, and the network parameters solved for a pose given
+/// in degrees and millimetres land on it.
+#[test]
+fn the_rig_speaks_degrees_and_millimetres() {
+    let f = fixture();
+    let rig = f.rig.clone().with_anatomy(&f.mandible, &f.poses.poses);
+    let rest = rig.encode(
+        &rig.anatomy
+            .as_ref()
+            .unwrap()
+            .rest
+            .to_pose(Path::new("r"), "rest")
+            .unwrap(),
+    );
+    let at_rest = rig.anatomical(&rest).unwrap();
+    // The rig's own pose for the rest bite's parameters is within its reconstruction error.
+    assert!(
+        at_rest.opening_deg.abs() < 0.5 && at_rest.incisal_opening_mm.abs() < 0.5,
+        "{at_rest:?}"
+    );
+    for target in [[10.0, 0.0, 0.0], [20.0, 3.0, 1.0], [5.0, -2.0, 2.0]] {
+        let d = rig
+            .params_for(&target)
+            .unwrap_or_else(|| panic!("{target:?} unreachable"));
+        let got = rig.anatomical(&d).unwrap();
+        assert!(
+            (got.opening_deg - target[0]).abs() < 1e-3,
+            "{target:?}: {got:?}"
+        );
+        assert!(
+            (got.lateral_mm - target[1]).abs() < 1e-3,
+            "{target:?}: {got:?}"
+        );
+        assert!(
+            (got.protrusion_mm - target[2]).abs() < 1e-3,
+            "{target:?}: {got:?}"
+        );
+    }
+    // Opening the jaw 20° moves the incisal point down by centimetres, as a hinge of ~9 cm does.
+    let d = rig.params_for(&[20.0, 0.0, 0.0]).unwrap();
+    let open = rig.anatomical(&d).unwrap();
+    assert!(
+        open.incisal_opening_mm > 20.0 && open.incisal_opening_mm < 40.0,
+        "{open:?}"
+    );
+    // A rig file keeps its anatomy.
+    let t = tempfile::tempdir().unwrap();
+    rig.save(&t.path().join("rig.json")).unwrap();
+    let back = JawRig::load(&t.path().join("rig.json")).unwrap();
+    assert_eq!(back.anatomical(&d), rig.anatomical(&d));
+    assert!(
+        f.rig.anatomical(&d).is_none(),
+        "a rig without its anatomy says so"
+    );
+}

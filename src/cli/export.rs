@@ -3,11 +3,11 @@
 use std::path::PathBuf;
 
 use anyhow::{Context, bail};
+use jawtrack::anatomy::motion::MotionFrame;
 use jawtrack::capture::json::{Status, TracksJson, read_json};
 use jawtrack::capture::{Capture, write_atomic};
 use jawtrack::envelope::JawFrame;
 use jawtrack::export::gltf::{Key, Part, write_gltf};
-use jawtrack::export::motion::MotionFrame;
 use jawtrack::geometry::{Pose, jaw_pose};
 
 #[derive(clap::Args)]
@@ -134,7 +134,7 @@ pub fn run(a: Args) -> anyhow::Result<()> {
         );
     }
     let measured: Vec<_> = frames.iter().map(|f| motion.measure(&f.2)).collect();
-    let range = |f: &dyn Fn(&jawtrack::export::motion::Anatomical) -> f64| {
+    let range = |f: &dyn Fn(&jawtrack::anatomy::motion::Anatomical) -> f64| {
         let v: Vec<f64> = measured.iter().map(f).collect();
         (
             v.iter().copied().fold(f64::INFINITY, f64::min),

@@ -25,9 +25,9 @@
 use nalgebra::{Rotation3, Vector3};
 use serde::{Deserialize, Serialize};
 
-use super::frame::JawFrame;
 use super::model::{EnvelopeError, EnvelopeRig};
 use crate::anatomy::MeshMetric;
+use crate::anatomy::jaw_frame::JawFrame;
 use crate::geometry::{Pose, so3_exp, so3_log};
 
 /// The measured poses' order.

@@ -8,9 +8,9 @@ use std::time::Instant;
 use rayon::prelude::*;
 use serde::Serialize;
 
-use super::frame::JawFrame;
 use super::model::{EnvelopeError, EnvelopeRig};
 use super::traditional::{Dofs, TraditionalRig};
+use crate::anatomy::jaw_frame::JawFrame;
 use crate::anatomy::{Coordinates, MeshMetric, Pca};
 use crate::geometry::Pose;
 use crate::rig::{JawRig, RigError, RigSettings};

@@ -4,13 +4,12 @@
 
 pub mod adapt;
 pub mod compare;
-pub mod frame;
 pub mod model;
 pub mod rbf;
 pub mod shield;
 pub mod traditional;
 
-pub use frame::JawFrame;
+pub use crate::anatomy::JawFrame;
 pub use model::{EnvelopeError, EnvelopeRig};
 pub use traditional::{Dofs, TraditionalRig};
 

@@ -6,11 +6,11 @@ use std::path::Path;
 use nalgebra::Vector3;
 use serde::{Deserialize, Serialize};
 
-use super::frame::{FrameError, JawFrame};
 use super::rbf::Rbf;
 use super::shield::{Shield, ShieldError};
 use super::traditional::{Dofs, TraditionalRig};
 use crate::anatomy::MeshMetric;
+use crate::anatomy::jaw_frame::{FrameError, JawFrame};
 use crate::capture::json::read_json;
 use crate::capture::write_json_atomic;
 use crate::error::{Error, Result};

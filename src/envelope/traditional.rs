@@ -16,7 +16,7 @@ use nalgebra::{Rotation3, Vector3};
 use rayon::prelude::*;
 use serde::{Deserialize, Serialize};
 
-use super::frame::JawFrame;
+use crate::anatomy::jaw_frame::JawFrame;
 use crate::geometry::Pose;
 use crate::geometry::least_squares::levenberg_marquardt;
 

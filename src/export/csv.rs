@@ -2,7 +2,7 @@
 
 use std::fmt::Write as _;
 
-use super::motion::MotionFrame;
+use crate::anatomy::motion::MotionFrame;
 use crate::geometry::Pose;
 
 /// The header line.

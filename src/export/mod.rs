@@ -1,6 +1,5 @@
-//! Motion out: jaw poses in anatomical units ([`motion`]), as glTF for animation packages
-//! ([`gltf`]) and CSV for analysis ([`csv`]).
+//! Motion out: jaw poses as glTF for animation packages ([`gltf`]) and, in anatomical units
+//! ([`crate::anatomy::motion`]), as CSV for analysis ([`csv`]).
 
 pub mod csv;
 pub mod gltf;
-pub mod motion;

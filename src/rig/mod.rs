@@ -13,7 +13,9 @@ mod network;
 pub mod nlpca;
 pub mod plot;
 pub mod ranges;
+pub mod units;
 
 pub use input::{JawPoses, read_jaw_poses, write_jaw_poses};
 pub use model::{JawRig, RigError, RigSettings};
 pub use nlpca::{Nlpca, NlpcaSettings};
+pub use units::AnimatorParams;

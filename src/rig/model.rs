@@ -154,6 +154,10 @@ pub struct JawRig {
     pub probes_mm: Vec<[f64; 3]>,
     pub settings: RigSettings,
     pub training: Training,
+    /// The jaw frame and rest bite, for animator units ([`super::units`]); absent in rig
+    /// files written before them.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub anatomy: Option<super::units::RigAnatomy>,
 }
 
 /// The smallest training set: enough for the five-component network to be determined at all.
@@ -282,6 +286,7 @@ impl JawRig {
                 protrusion: protrusion_report,
                 modes: modes_report,
             },
+            anatomy: None,
         })
     }
 
@@ -418,6 +423,14 @@ impl JawRig {
                 "probes_mm",
                 "must list at least one point",
             ));
+        }
+        if let Some(a) = &rig.anatomy {
+            a.rest.to_pose(path, "anatomy.rest")?;
+            let f = &a.frame;
+            let points = [f.condyle_left, f.condyle_right, f.reference];
+            crate::capture::json::check_finite(path, "anatomy.frame", points.as_flattened())?;
+            f.axes()
+                .map_err(|e| Error::invalid(path, "anatomy.frame", e.to_string()))?;
         }
         if !(rig.coords.radius_mm.is_finite() && rig.coords.radius_mm > 0.0) {
             return Err(Error::invalid(

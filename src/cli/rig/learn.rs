@@ -91,7 +91,7 @@ struct LearnSummary<'a> {
 
 pub fn learn(a: LearnArgs) -> anyhow::Result<()> {
     let (poses, read_seconds) = load_poses(&a.input)?;
-    let (_, metric) = load_mesh(&a.mesh)?;
+    let (mesh, metric) = load_mesh(&a.mesh)?;
     let mut settings = crate::cli::args::rig_settings(a.settings.as_deref())?;
     settings.alpha = a.alpha;
     settings.network.seed = a.seed;
@@ -100,7 +100,8 @@ pub fn learn(a: LearnArgs) -> anyhow::Result<()> {
     settings.validate(std::path::Path::new("--alpha"))?;
     let rig = crate::cli::run::with_spinner("learning the rig", || {
         JawRig::learn(&poses.poses, &metric, &settings)
-    })?;
+    })?
+    .with_anatomy(&mesh, &poses.poses);
     rig.save(&a.out)?;
     let summary = LearnSummary {
         rig: a.out.display().to_string(),

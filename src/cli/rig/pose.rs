@@ -15,12 +15,21 @@ use crate::cli::args::{load_mesh, number_in, parse_vec3};
 #[derive(clap::Args)]
 pub struct PoseArgs {
     pub rig: PathBuf,
-    #[arg(allow_hyphen_values = true, value_parser = number_in(-1e6, 1e6))]
-    pub d1: f64,
-    #[arg(allow_hyphen_values = true, value_parser = number_in(-1e6, 1e6))]
-    pub d2: f64,
-    #[arg(allow_hyphen_values = true, value_parser = number_in(-1e6, 1e6))]
-    pub d3: f64,
+    /// The network's parameters d1 d2 d3 (or give the animator's, below).
+    #[arg(allow_hyphen_values = true, value_parser = number_in(-1e6, 1e6), num_args = 3,
+          value_names = ["D1", "D2", "D3"], required_unless_present = "opening_deg")]
+    pub d: Option<Vec<f64>>,
+    /// Opening in degrees about the condylar axis (0 at the rest bite); with --lateral-mm and
+    /// --protrusion-mm instead of D1 D2 D3.
+    #[arg(long, allow_hyphen_values = true, value_parser = number_in(-90.0, 90.0),
+          requires_all = ["lateral_mm", "protrusion_mm"], conflicts_with = "d")]
+    pub opening_deg: Option<f64>,
+    /// Lateral excursion of the lower incisal point, mm (to the subject's left positive).
+    #[arg(long, allow_hyphen_values = true, value_parser = number_in(-100.0, 100.0), requires = "opening_deg")]
+    pub lateral_mm: Option<f64>,
+    /// Protrusion of the lower incisal point, mm (forwards positive).
+    #[arg(long, allow_hyphen_values = true, value_parser = number_in(-100.0, 100.0), requires = "opening_deg")]
+    pub protrusion_mm: Option<f64>,
     /// Clamp the parameters into the valid ranges before posing.
     #[arg(long)]
     pub clamp: bool,
@@ -65,9 +74,21 @@ pub struct IkArgs {
     pub from: [f64; 3],
 }
 
+/// A pose in the animator's units (degrees; mm at the lower incisal point, from the rest bite).
+#[derive(Serialize)]
+struct AnimatorReport {
+    opening_deg: f64,
+    incisal_opening_mm: f64,
+    lateral_mm: f64,
+    protrusion_mm: f64,
+}
+
 #[derive(Serialize)]
 struct PoseReport {
     params: [f64; 3],
+    /// The posed jaw in animator units (absent for rig files learned before they existed).
+    #[serde(skip_serializing_if = "Option::is_none")]
+    animator: Option<AnimatorReport>,
     valid: bool,
     /// The nearest valid parameters (equal to `params` when they are valid).
     valid_params: [f64; 3],
@@ -77,14 +98,37 @@ struct PoseReport {
 
 pub fn pose(a: PoseArgs) -> anyhow::Result<()> {
     let rig = JawRig::load(&a.rig)?;
-    let d = [a.d1, a.d2, a.d3];
+    let d = match (&a.d, a.opening_deg, a.lateral_mm, a.protrusion_mm) {
+        (Some(d), ..) => [d[0], d[1], d[2]],
+        (None, Some(o), Some(l), Some(p)) => {
+            if rig.anatomy.is_none() {
+                bail!(
+                    "{}: this rig file has no jaw frame (learned before animator units): learn it again to pose it in degrees and mm",
+                    a.rig.display()
+                );
+            }
+            rig.params_for(&[o, l, p]).with_context(|| {
+                format!(
+                    "the rig reaches no pose opened {o}° with {l} mm lateral and {p} mm protrusion"
+                )
+            })?
+        }
+        _ => bail!("give D1 D2 D3, or --opening-deg, --lateral-mm and --protrusion-mm"),
+    };
     if d.iter().any(|v| !v.is_finite()) {
         bail!("the parameters must be finite numbers");
     }
     let valid_params = rig.clamp(&d);
     let used = if a.clamp { valid_params } else { d };
+    let animator = rig.anatomical(&used).map(|u| AnimatorReport {
+        opening_deg: u.opening_deg,
+        incisal_opening_mm: u.incisal_opening_mm,
+        lateral_mm: u.lateral_mm,
+        protrusion_mm: u.protrusion_mm,
+    });
     let report = PoseReport {
         params: d,
+        animator,
         valid: rig.is_valid(&d),
         valid_params,
         pose: (&rig.pose(&used)).into(),

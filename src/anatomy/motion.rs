@@ -8,7 +8,7 @@
 
 use nalgebra::{Matrix3, Vector3};
 
-use crate::envelope::JawFrame;
+use super::JawFrame;
 use crate::geometry::Pose;
 
 /// One jaw pose in anatomical units.

@@ -1,0 +1,97 @@
+//! The rig's parameters in the units animators use: zero at the rest bite, opening in degrees
+//! about the condylar axis, lateral excursion and protrusion in mm at the lower incisal point
+//! ([`crate::anatomy::motion`]). The network's own coordinates (d1, d2, d3) stay inside the
+//! rig; these are measured on the poses it produces, and solved for when given.
+
+use serde::{Deserialize, Serialize};
+
+use super::JawRig;
+use crate::anatomy::JawFrame;
+use crate::anatomy::motion::{Anatomical, MotionFrame};
+use crate::capture::Mesh;
+use crate::capture::json::PoseJson;
+use crate::geometry::Pose;
+
+/// What the rig file keeps to speak anatomical units: the jaw frame's landmarks (lower frame)
+/// and the rest bite (`upper_from_lower`, the most closed training pose).
+#[derive(Debug, Clone, Serialize, Deserialize)]
+pub struct RigAnatomy {
+    pub frame: JawFrame,
+    pub rest: PoseJson,
+}
+
+/// Opening (degrees), lateral (mm) and protrusion (mm): the three animator parameters.
+pub type AnimatorParams = [f64; 3];
+
+impl JawRig {
+    /// Attach the anatomy: landmarks found on `mesh` (the mandible or lower arch the rig was
+    /// learned with), the rest bite the most closed of `poses`. `None` when the landmarks are
+    /// degenerate.
+    pub fn with_anatomy(mut self, mesh: &Mesh, poses: &[Pose]) -> JawRig {
+        self.anatomy = JawFrame::from_mesh(mesh, None, None)
+            .ok()
+            .and_then(|frame| {
+                let rest = poses[MotionFrame::most_closed(&frame, poses)?];
+                Some(RigAnatomy {
+                    frame,
+                    rest: (&rest).into(),
+                })
+            });
+        self
+    }
+
+    fn motion_frame(&self) -> Option<MotionFrame> {
+        let a = self.anatomy.as_ref()?;
+        let rest = a
+            .rest
+            .to_pose(std::path::Path::new("rig"), "anatomy.rest")
+            .ok()?;
+        Some(MotionFrame::new(&a.frame, rest))
+    }
+
+    /// The pose for `d` in anatomical units (`None` for a rig file without its anatomy).
+    pub fn anatomical(&self, d: &[f64; 3]) -> Option<Anatomical> {
+        Some(self.motion_frame()?.measure(&self.pose(d)))
+    }
+
+    /// The network parameters whose pose has these animator parameters, by Newton's method
+    /// from the rest bite's parameters (the Jacobian by central differences). `None` without
+    /// the anatomy, or when the rig cannot reach them (its modes do not span that pose).
+    pub fn params_for(&self, target: &AnimatorParams) -> Option<[f64; 3]> {
+        let m = self.motion_frame()?;
+        let f = |d: &[f64; 3]| -> [f64; 3] {
+            let a = m.measure(&self.pose(d));
+            [
+                a.opening_deg - target[0],
+                a.lateral_mm - target[1],
+                a.protrusion_mm - target[2],
+            ]
+        };
+        let mut d = self.encode(m.rest());
+        for _ in 0..50 {
+            let r = f(&d);
+            if r.iter().map(|v| v * v).sum::<f64>().sqrt() < 1e-6 {
+                return Some(d);
+            }
+            let h = 1e-5;
+            let mut jac = nalgebra::Matrix3::zeros();
+            for k in 0..3 {
+                let (mut a, mut b) = (d, d);
+                a[k] += h;
+                b[k] -= h;
+                let (fa, fb) = (f(&a), f(&b));
+                for i in 0..3 {
+                    jac[(i, k)] = (fa[i] - fb[i]) / (2.0 * h);
+                }
+            }
+            let step = jac.try_inverse()? * nalgebra::Vector3::from(r);
+            // Damped: a full step can leave the region the modes were fitted on.
+            let scale = (0.1 / step.norm()).min(1.0);
+            for k in 0..3 {
+                d[k] -= scale * step[k];
+            }
+        }
+        let r = f(&d);
+        (r.iter().map(|v| v * v).sum::<f64>().sqrt() < 1e-3).then_some(d)
+    }
+}
