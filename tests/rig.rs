@@ -367,3 +367,36 @@ fn the_rig_speaks_degrees_and_millimetres() {
         "a rig without its anatomy says so"
     );
 }
+
+/// Keys in degrees and millimetres are interpolated in those units.
+#[test]
+fn an_animation_keyed_in_degrees_opens_linearly() {
+    use jawtrack::rig::animate::{Key, KeyError, animate_animator};
+    let f = fixture();
+    let rig = f.rig.clone().with_anatomy(&f.mandible, &f.poses.poses);
+    let keys = [
+        Key {
+            time: 0.0,
+            params: [0.0, 0.0, 0.0],
+        },
+        Key {
+            time: 1.0,
+            params: [20.0, 0.0, 1.0],
+        },
+    ];
+    let frames = animate_animator(&rig, &keys, 10.0).unwrap();
+    assert_eq!(frames.len(), 11);
+    for fr in frames.iter().filter(|fr| !fr.clamped) {
+        let a = rig.anatomical(&fr.params).unwrap();
+        assert!(
+            (a.opening_deg - 20.0 * fr.time).abs() < 1e-3,
+            "{fr:?}: {a:?}"
+        );
+        assert!((a.protrusion_mm - fr.time).abs() < 1e-3, "{fr:?}: {a:?}");
+    }
+    assert!(frames.iter().filter(|fr| !fr.clamped).count() >= 3);
+    assert_eq!(
+        animate_animator(&f.rig, &keys, 10.0).unwrap_err(),
+        KeyError::NoAnatomy
+    );
+}

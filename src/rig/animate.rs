@@ -24,6 +24,10 @@ pub enum KeyError {
     NotIncreasing(usize),
     #[error("frames per second must be a positive number")]
     BadRate,
+    #[error("the rig file has no jaw frame (learned before animator units): learn it again")]
+    NoAnatomy,
+    #[error("frame {0}: the rig reaches no pose with these degrees and millimetres")]
+    Unreachable(u32),
 }
 
 /// Parameters at time `t` (held before the first key and after the last).
@@ -93,6 +97,42 @@ pub fn animate(rig: &JawRig, keys: &[Key], fps: f64) -> Result<Vec<AnimatedFrame
             }
         })
         .collect())
+}
+
+/// The same with keys in animator units (opening °, lateral mm, protrusion mm): those are
+/// interpolated, and each frame's network parameters solved for them, then clamped.
+pub fn animate_animator(
+    rig: &JawRig,
+    keys: &[Key],
+    fps: f64,
+) -> Result<Vec<AnimatedFrame>, KeyError> {
+    check_keys(keys, fps)?;
+    if rig.anatomy.is_none() {
+        return Err(KeyError::NoAnatomy);
+    }
+    let (t0, t1) = (keys[0].time, keys[keys.len() - 1].time);
+    let count = ((t1 - t0) * fps).floor() as u32 + 1;
+    let mut previous = None;
+    (0..count)
+        .map(|i| {
+            let time = t0 + i as f64 / fps;
+            let target = params_at(keys, time);
+            let raw = match previous {
+                Some(d) => rig.params_near(&target, d),
+                None => rig.params_for(&target),
+            }
+            .ok_or(KeyError::Unreachable(i))?;
+            previous = Some(raw);
+            let params = rig.clamp(&raw);
+            Ok(AnimatedFrame {
+                frame: i,
+                time,
+                params,
+                clamped: params != raw,
+                pose: rig.pose(&params),
+            })
+        })
+        .collect()
 }
 
 #[cfg(test)]

@@ -59,6 +59,16 @@ impl JawRig {
     /// the anatomy, or when the rig cannot reach them (its modes do not span that pose).
     pub fn params_for(&self, target: &AnimatorParams) -> Option<[f64; 3]> {
         let m = self.motion_frame()?;
+        self.solve(&m, target, self.encode(m.rest()))
+    }
+
+    /// [`JawRig::params_for`] from `start` (an animation's previous frame).
+    pub fn params_near(&self, target: &AnimatorParams, start: [f64; 3]) -> Option<[f64; 3]> {
+        let m = self.motion_frame()?;
+        self.solve(&m, target, start)
+    }
+
+    fn solve(&self, m: &MotionFrame, target: &AnimatorParams, start: [f64; 3]) -> Option<[f64; 3]> {
         let f = |d: &[f64; 3]| -> [f64; 3] {
             let a = m.measure(&self.pose(d));
             [
@@ -67,7 +77,7 @@ impl JawRig {
                 a.protrusion_mm - target[2],
             ]
         };
-        let mut d = self.encode(m.rest());
+        let mut d = start;
         for _ in 0..50 {
             let r = f(&d);
             if r.iter().map(|v| v * v).sum::<f64>().sqrt() < 1e-6 {

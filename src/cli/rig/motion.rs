@@ -10,12 +10,17 @@ use crate::cli::args::{load_mesh, parse_vec3};
 #[derive(clap::Args)]
 pub struct AnimateArgs {
     pub rig: PathBuf,
-    /// A key: TIME:D1,D2,D3 (seconds, parameters); repeat for each key.
+    /// A key: TIME:D1,D2,D3 (seconds, parameters; with --animator TIME:OPENING_DEG,LATERAL_MM,
+    /// PROTRUSION_MM); repeat for each key.
     #[arg(long = "key", value_parser = parse_key)]
     pub keys: Vec<jawtrack::rig::animate::Key>,
     /// Or a JSON file: [{"time": 0.0, "params": [d1, d2, d3]}, ...].
     #[arg(long, conflicts_with = "keys")]
     pub keys_file: Option<PathBuf>,
+    /// Keys are in animator units (opening °, lateral and protrusion mm at the incisal point,
+    /// from the rest bite), interpolated in those units.
+    #[arg(long)]
+    pub animator: bool,
     /// Frames per second (above 0, at most 10000).
     #[arg(long, default_value_t = 24.0, value_parser = crate::cli::args::number_in(1e-3, 10_000.0))]
     pub fps: f64,
@@ -64,15 +69,23 @@ fn parse_key(s: &str) -> Result<jawtrack::rig::animate::Key, String> {
 }
 
 pub fn animate(a: AnimateArgs) -> anyhow::Result<()> {
-    use jawtrack::rig::animate::{Key, animate};
+    use jawtrack::rig::animate::{Key, animate, animate_animator};
     let rig = JawRig::load(&a.rig)?;
     let keys: Vec<Key> = match &a.keys_file {
         Some(p) => jawtrack::capture::json::read_json(p, "keys file")?,
         None => a.keys.clone(),
     };
-    let frames = animate(&rig, &keys, a.fps).map_err(|e| match &a.keys_file {
-        Some(p) => anyhow::anyhow!("{}: {e}", p.display()),
-        None => anyhow::anyhow!("--key: {e}"),
+    let play = if a.animator {
+        animate_animator
+    } else {
+        animate
+    };
+    let frames = play(&rig, &keys, a.fps).map_err(|e| match (&e, &a.keys_file) {
+        (jawtrack::rig::animate::KeyError::NoAnatomy, _) => {
+            anyhow::anyhow!("{}: {e}", a.rig.display())
+        }
+        (_, Some(p)) => anyhow::anyhow!("{}: {e}", p.display()),
+        (_, None) => anyhow::anyhow!("--key: {e}"),
     })?;
     let numbers: Vec<u32> = frames.iter().map(|f| f.frame).collect();
     let poses: Vec<Pose> = frames.iter().map(|f| f.pose).collect();
