@@ -46,7 +46,7 @@ pub fn run(a: Args) -> anyhow::Result<()> {
             );
         }
         let bar = crate::cli::progress_bar(files.len() as u64, name);
-        let b = sync::brightness(&files)?;
+        let b = sync::brightness(&files, &|| bar.inc(1))?;
         bar.finish_and_clear();
         let Some(event) = sync::detect(first, &b) else {
             bail!(

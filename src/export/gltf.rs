@@ -56,7 +56,6 @@ impl Builder {
         })
     }
 
-    #[allow(clippy::too_many_arguments)]
     fn accessor(
         &mut self,
         data: &[u8],

@@ -46,8 +46,9 @@ pub fn frame_files(dir: &Path) -> Result<Vec<(u32, PathBuf)>> {
     Ok(out)
 }
 
-/// Mean brightness (0-255 luma) of every frame, in the files' order.
-pub fn brightness(files: &[(u32, PathBuf)]) -> Result<Vec<f64>> {
+/// Mean brightness (0-255 luma) of every frame, in the files' order; `done` is called after
+/// each frame.
+pub fn brightness(files: &[(u32, PathBuf)], done: &(dyn Fn() + Sync)) -> Result<Vec<f64>> {
     files
         .par_iter()
         .map(|(_, path)| {
@@ -57,6 +58,7 @@ pub fn brightness(files: &[(u32, PathBuf)]) -> Result<Vec<f64>> {
             })?;
             let luma = img.into_luma8();
             let sum: u64 = luma.as_raw().iter().map(|&v| v as u64).sum();
+            done();
             Ok(sum as f64 / luma.as_raw().len().max(1) as f64)
         })
         .collect()
