@@ -14,6 +14,7 @@ pub mod export;
 pub mod footage;
 pub mod geometry;
 pub mod rig;
+pub mod segment;
 pub mod settings;
 pub mod skin;
 pub mod stats;

@@ -461,3 +461,45 @@ fn masks_from_sam2_objects_and_a_cvat_export() {
         &["labelmap.txt", "`incisors`", "inside, lips, teeth"],
     );
 }
+
+/// Masks the program makes: a synthetic capture filmed in colour (`synth --images`), its
+/// masks removed, made again by `segment` while it tracks. Every picture gets a mask in the
+/// capture format, the teeth and each arch overlap the true labels (gt/masks) with margins
+/// below what this writes today (docs/footage.md), and the masks made are refused as
+/// overwritable without --force.
+#[test]
+fn segment_makes_masks_from_colour_frames() {
+    let tmp = tempfile::tempdir().unwrap();
+    let cap = tmp.path().join("cap");
+    ok(&["synth", s(&cap), "--frames", "6", "--images"]);
+    std::fs::remove_dir_all(cap.join("masks")).unwrap();
+    let tracks = tmp.path().join("tracks.json");
+    let out = ok(&["segment", s(&cap), "-o", s(&tracks), "--backend", "cpu"]);
+    let iou = |name: &str| -> f64 {
+        let at = out
+            .find(&format!("{name} "))
+            .unwrap_or_else(|| panic!("no {name} IoU in {out}"));
+        out[at + name.len() + 1..]
+            .split(|c: char| !(c.is_ascii_digit() || c == '.'))
+            .next()
+            .unwrap()
+            .parse()
+            .unwrap()
+    };
+    assert!(iou("IoU teeth") > 0.8, "{out}");
+    assert!(iou("upper") > 0.75, "{out}");
+    assert!(iou("lower") > 0.75, "{out}");
+    for cam in ["cam0", "cam1", "cam2"] {
+        for f in 0..6 {
+            assert!(
+                cap.join(format!("masks/{cam}/{f:06}.png")).exists(),
+                "{cam} frame {f}: no mask"
+            );
+        }
+    }
+    // The masks are the capture's now: tracked from as any, and never overwritten unasked.
+    ok(&["validate", s(&cap)]);
+    let again = jawtrack(&["segment", s(&cap), "-o", s(&tracks), "--backend", "cpu"]);
+    assert!(!again.status.success());
+    assert_mentions(&String::from_utf8_lossy(&again.stderr), &["--force"]);
+}

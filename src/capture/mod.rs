@@ -129,6 +129,9 @@ pub struct OpenOptions {
     /// Let capture.json name files outside the capture folder (absolute paths, `..`, links
     /// out). Off by default: a capture from elsewhere reads only its own folder.
     pub allow_outside: bool,
+    /// The masks are yet to be made (`jawtrack segment`): a capture with no mask files opens,
+    /// its cameras without a mask size.
+    pub masks_to_come: bool,
 }
 
 /// The default simplification bound: 0.02 mm, about a twentieth of a pixel of a GoPro's
@@ -143,6 +146,7 @@ impl Default for OpenOptions {
             simplify_mm: DEFAULT_SIMPLIFY_MM,
             mask_reduce: 1,
             allow_outside: false,
+            masks_to_come: false,
         }
     }
 }
@@ -296,6 +300,7 @@ impl Capture {
         let last = first as u64 + cj.frames.count as u64 - 1;
         let last_present = cameras.iter().filter_map(|c| c.frames_present.last()).max();
         match last_present {
+            _ if options.masks_to_come => {}
             None => {
                 return Err(Error::Missing {
                     path: mask_dir,
@@ -396,6 +401,22 @@ impl Capture {
         self.mask_dir
             .join(&cam.calibrated.name)
             .join(format!("{file:06}.png"))
+    }
+
+    /// A camera's video frame (images/<camera>/<file>.png|jpg, the file number through the
+    /// camera's offset), if the capture has it.
+    pub fn image_path(&self, camera: usize, frame: u32) -> Option<PathBuf> {
+        let cam = &self.cameras[camera];
+        let (name, file) = (&cam.calibrated.name, cam.file_frame(frame)?);
+        ["png", "jpg", "jpeg"]
+            .iter()
+            .map(|ext| {
+                self.dir
+                    .join("images")
+                    .join(name)
+                    .join(format!("{file:06}.{ext}"))
+            })
+            .find(|p| p.exists())
     }
 
     /// Decode the masks of one frame, as they are (see [`CaptureCamera::mask_camera`]).

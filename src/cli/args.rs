@@ -114,6 +114,7 @@ impl LoadArgs {
             simplify_mm: self.simplify_mm,
             mask_reduce: self.mask_reduce,
             allow_outside: self.allow_outside,
+            masks_to_come: false,
         }
     }
 }
@@ -210,7 +211,7 @@ impl CameraRigArgs {
 /// Settings from a `--settings` argument: a JSON file, or the JSON itself when the argument
 /// starts with `{` (errors then name `--settings` where they would name the file); with the
 /// name its errors go by.
-fn read_settings<'a, T: serde::de::DeserializeOwned>(
+pub fn read_settings<'a, T: serde::de::DeserializeOwned>(
     arg: &'a Path,
     what: &str,
 ) -> anyhow::Result<(T, &'a Path)> {

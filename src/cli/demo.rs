@@ -51,6 +51,8 @@ pub fn run(a: Args) -> anyhow::Result<()> {
         distortion: None,
         mouth: true,
         persistent_noise: false,
+        images: false,
+        light_off: None,
     };
     println!(
         "== 1. synthesise a {} capture: three cameras, half-resolution masks",

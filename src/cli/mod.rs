@@ -13,6 +13,7 @@ mod report;
 mod rig;
 mod run;
 mod score;
+mod segment;
 mod skin;
 mod sync;
 mod synth;
@@ -44,6 +45,8 @@ enum Command {
     Sync(sync::Args),
     /// Check a capture and print a summary, or what is wrong.
     Validate(validate::Args),
+    /// Make the masks from the colour frames while tracking (writes masks/ and tracks.json).
+    Segment(segment::Args),
     /// Track both arches through a capture and write tracks.json.
     Track(track::Args),
     /// Score a tracks.json against the capture's ground truth.
@@ -77,6 +80,7 @@ pub fn main() -> ExitCode {
         Command::Import(c) => import::run(c),
         Command::Sync(a) => sync::run(a),
         Command::Validate(a) => validate::run(a),
+        Command::Segment(a) => segment::run(a),
         Command::Track(a) => track::run(a),
         Command::Score(a) => score::run(a),
         Command::Energy(a) => energy::run(a),

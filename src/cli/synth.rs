@@ -59,6 +59,13 @@ pub struct Args {
     /// rather than being drawn afresh each frame.
     #[arg(long)]
     pub persistent_noise: bool,
+    /// Also film it in colour: images/<camera>/<frame>.png at the masks' resolution, and the
+    /// labels they truly show in gt/masks/ (to score `jawtrack segment` against).
+    #[arg(long)]
+    pub images: bool,
+    /// With --images: frames `A..B` during which the light is off (the sync event).
+    #[arg(long, requires = "images")]
+    pub light_off: Option<String>,
     /// Print the report as JSON.
     #[arg(long)]
     pub json: bool,
@@ -87,6 +94,8 @@ pub fn run(a: Args) -> anyhow::Result<()> {
         distortion: a.rig.distortion()?,
         mouth: !a.no_mouth,
         persistent_noise: a.persistent_noise,
+        images: a.images,
+        light_off: a.light_off.as_deref().map(light_off).transpose()?,
     };
     let report = super::run::synthesise(&out, &opts)?;
     if a.json {
@@ -95,6 +104,24 @@ pub fn run(a: Args) -> anyhow::Result<()> {
         super::report::synth(&out, &report);
     }
     Ok(())
+}
+
+/// `A..B`: the frames the light is off.
+fn light_off(s: &str) -> anyhow::Result<std::ops::Range<u32>> {
+    let parse = |t: &str| {
+        t.trim()
+            .parse::<u32>()
+            .map_err(|_| anyhow::anyhow!("--light-off {s:?}: expected A..B (frame numbers)"))
+    };
+    let (a, b) = s
+        .split_once("..")
+        .ok_or_else(|| anyhow::anyhow!("--light-off {s:?}: expected A..B (frame numbers)"))?;
+    let (a, b) = (parse(a)?, parse(b)?);
+    anyhow::ensure!(
+        a < b,
+        "--light-off {s:?}: the first frame must come before the last"
+    );
+    Ok(a..b)
 }
 
 fn faces(a: Args) -> anyhow::Result<()> {

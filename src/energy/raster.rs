@@ -460,6 +460,12 @@ fn raster_triangle(
 /// A label image over the whole image: each mesh drawn at its pose with its labels (body,
 /// boundary of interest), depth-tested: what a perfect segmentation of those meshes shows.
 pub fn render_labels(cam: &Camera, items: &[(&Mesh, &Pose, u8, u8)]) -> Vec<u8> {
+    render_target(cam, items).class
+}
+
+/// [`render_labels`] with the depth buffer (1/z per pixel, 0 where nothing was drawn), for
+/// pictures that shade the surfaces.
+pub fn render_target(cam: &Camera, items: &[(&Mesh, &Pose, u8, u8)]) -> Target {
     let mut placed = Placed::default();
     let mut target = Target::default();
     target.reset(Rect::full(cam.width, cam.height));
@@ -467,7 +473,7 @@ pub fn render_labels(cam: &Camera, items: &[(&Mesh, &Pose, u8, u8)]) -> Vec<u8> 
         placed.place(cam, mesh, &cam.camera_from_world.compose(world_from_model));
         rasterise(mesh, &placed, *body, *boi, &mut target);
     }
-    target.class
+    target
 }
 
 #[cfg(test)]

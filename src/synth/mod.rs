@@ -3,6 +3,7 @@
 //! calib/, masks at half resolution with lips and segmentation noise per preset. Writes the
 //! capture format exactly, deterministically per seed.
 
+pub mod colour;
 pub mod exercise;
 pub mod face;
 pub mod mandible;
@@ -119,6 +120,12 @@ pub struct SynthOptions {
     /// each camera's wandering boundaries and specular holes are drawn once for the capture
     /// rather than afresh every frame.
     pub persistent_noise: bool,
+    /// Also film the capture in colour: `images/<camera>/<frame>.png` at the masks'
+    /// resolution, and the true labels they show in `gt/masks/` (for scoring masks made
+    /// from the pictures).
+    pub images: bool,
+    /// Frames (capture numbers) during which the light is off in the colour pictures.
+    pub light_off: Option<std::ops::Range<u32>>,
 }
 
 impl Default for SynthOptions {
@@ -137,6 +144,8 @@ impl Default for SynthOptions {
             distortion: None,
             mouth: true,
             persistent_noise: false,
+            images: false,
+            light_off: None,
         }
     }
 }
@@ -472,6 +481,14 @@ fn render_mask(
 }
 
 fn encode_png(grey: &[u8], width: u32, height: u32) -> Vec<u8> {
+    encode(grey, width, height, image::ExtendedColorType::L8)
+}
+
+fn encode_png_rgb(rgb: &[u8], width: u32, height: u32) -> Vec<u8> {
+    encode(rgb, width, height, image::ExtendedColorType::Rgb8)
+}
+
+fn encode(pixels: &[u8], width: u32, height: u32, kind: image::ExtendedColorType) -> Vec<u8> {
     use image::ImageEncoder;
     let mut out = Vec::new();
     image::codecs::png::PngEncoder::new_with_quality(
@@ -479,8 +496,8 @@ fn encode_png(grey: &[u8], width: u32, height: u32) -> Vec<u8> {
         image::codecs::png::CompressionType::Fast,
         image::codecs::png::FilterType::Adaptive,
     )
-    .write_image(grey, width, height, image::ExtendedColorType::L8)
-    .expect("encoding a grey image into memory cannot fail");
+    .write_image(pixels, width, height, kind)
+    .expect("encoding an image into memory cannot fail");
     out
 }
 

@@ -4,7 +4,7 @@
 use std::path::Path;
 use std::time::Instant;
 
-use rand::SeedableRng;
+use rand::{RngExt, SeedableRng};
 use rand_chacha::ChaCha8Rng;
 use rayon::prelude::*;
 
@@ -16,9 +16,10 @@ use crate::capture::mesh::write_obj;
 use crate::capture::{ArchPoses, write_atomic, write_json_atomic};
 use crate::error::Result;
 
+use super::colour::{Exposure, render_colour};
 use super::{
     CameraStats, LOWER_LABEL, MOUTH_LABEL, MaskKind, Session, SynthOptions, SynthReport,
-    UPPER_LABEL, render_mask,
+    UPPER_LABEL, encode_png, encode_png_rgb, render_mask,
 };
 
 pub(super) fn write_capture(
@@ -117,6 +118,9 @@ pub(super) fn write_capture(
                 }
                 stats.push(m);
             }
+            if opts.images {
+                write_colour(dir, s, opts, index, &poses, show)?;
+            }
             progress();
             Ok((index, poses, controls, stats))
         })
@@ -203,4 +207,44 @@ pub(super) fn write_capture(
     }
     report.seconds = started.elapsed().as_secs_f64();
     Ok(report)
+}
+
+/// One frame's colour pictures and their true labels, per camera.
+fn write_colour(
+    dir: &Path,
+    s: &Session,
+    opts: &SynthOptions,
+    index: u32,
+    poses: &ArchPoses,
+    show: [f64; 2],
+) -> Result<()> {
+    for (c, cam) in s.mask_cameras.iter().enumerate() {
+        // The camera's white balance stays; the light flickers a little from frame to frame.
+        let mut camera_rng = ChaCha8Rng::seed_from_u64(opts.seed ^ (0xC0_10E5 + c as u64));
+        let white = [0; 3].map(|_| camera_rng.random_range(0.96..=1.04));
+        let mut rng = ChaCha8Rng::seed_from_u64(
+            opts.seed ^ ((index as u64) << 8 | c as u64).wrapping_mul(0xD1B5_4A32_D192_ED03),
+        );
+        let off = opts.light_off.as_ref().is_some_and(|r| r.contains(&index));
+        let gain = if off { 0.04 } else { 1.0 } * rng.random_range(0.98..=1.02);
+        let frame = render_colour(
+            cam,
+            [&s.upper, &s.lower],
+            poses,
+            &s.lips,
+            show,
+            Exposure { gain, white },
+            &mut rng,
+        );
+        let name = format!("{index:06}.png");
+        write_atomic(
+            &dir.join("images").join(&cam.name).join(&name),
+            &encode_png_rgb(&frame.rgb, cam.width, cam.height),
+        )?;
+        write_atomic(
+            &dir.join("gt/masks").join(&cam.name).join(&name),
+            &encode_png(&frame.labels, cam.width, cam.height),
+        )?;
+    }
+    Ok(())
 }

@@ -17,6 +17,8 @@ pub mod session;
 pub mod state;
 
 pub use search::{Found, SearchSettings, search};
-pub use sequence::{FrameResult, LabelledSettings, Status, TrackSettings, track_frames};
+pub use sequence::{
+    FrameResult, LabelledSettings, MaskSource, Status, TrackSettings, track_frames,
+};
 pub use session::{Session, SessionOptions, Summary, score_records};
 pub use state::TrackState;

@@ -3,29 +3,12 @@
 //! (so overlap is pink) and the boundary of interest in green, at the masks' resolution; on
 //! top of the video frame when the capture has images/.
 
-use std::path::{Path, PathBuf};
+use std::path::Path;
 
 use crate::capture::masks::MOUTH_BIT;
 use crate::capture::{ArchPoses, Capture, FrameMasks, LOWER_BIT, UPPER_BIT, write_atomic};
 use crate::energy::raster::{CLASS_BODY, CLASS_BOI, render_labels};
 use crate::error::{Error, Result};
-
-/// The capture's video frame for a camera, if it has one (images/<camera>/<file>.png|jpg, the
-/// file number through the camera's offset).
-fn video_frame(capture: &Capture, camera: usize, frame: u32) -> Option<PathBuf> {
-    let cam = &capture.cameras[camera];
-    let (camera, frame) = (&cam.calibrated.name, cam.file_frame(frame)?);
-    ["png", "jpg", "jpeg"]
-        .iter()
-        .map(|ext| {
-            capture
-                .dir
-                .join("images")
-                .join(camera)
-                .join(format!("{frame:06}.{ext}"))
-        })
-        .find(|p| p.exists())
-}
 
 /// Write `dir/<camera>/<frame:06>.png` for every camera with a mask in this frame.
 pub fn write_overlays(
@@ -47,7 +30,7 @@ pub fn write_overlays(
             ],
         );
         let (w, h) = (cam.width, cam.height);
-        let mut rgb = match video_frame(capture, k, masks.frame) {
+        let mut rgb = match capture.image_path(k, masks.frame) {
             Some(path) => image::open(&path)
                 .map_err(|e| Error::Image {
                     path: path.clone(),

@@ -227,14 +227,39 @@ fn extrapolate(last: &Pose, before: &Pose) -> Pose {
     last.compose(&before.inverse()).compose(last)
 }
 
-/// Track `frames` (in order), starting from `state`; `on_frame` receives every frame with its
-/// masks (for overlays, without reading them again).
+/// Where a frame's masks come from when they are not read from the capture's files: made as
+/// tracking goes, from where it expects the arches (`jawtrack segment`).
+pub trait MaskSource {
+    /// The masks of `frame`; `expected`: the poses tracking will search from (the last good
+    /// one first).
+    fn frame_masks(&mut self, frame: u32, expected: &[ArchPoses]) -> Result<FrameMasks>;
+}
+
+/// The poses a frame's search starts from: the last good pose, its constant-velocity
+/// extrapolation, the latest low-confidence estimate since.
+pub fn starts(state: &TrackState) -> Vec<ArchPoses> {
+    let mut starts = vec![state.last];
+    if let Some(before) = &state.before {
+        starts.push(ArchPoses {
+            upper: extrapolate(&state.last.upper, &before.upper),
+            lower: extrapolate(&state.last.lower, &before.lower),
+        });
+    }
+    starts.extend(state.since_good);
+    starts
+}
+
+/// Track `frames` (in order), starting from `state`, with the masks of the capture's files
+/// or, given a `source`, its; `on_frame` receives every frame with its masks (for overlays,
+/// without reading them again).
+#[allow(clippy::too_many_arguments)]
 pub fn track_frames(
     capture: &Capture,
     engine: &mut dyn EnergyEngine,
     settings: &TrackSettings,
     frames: std::ops::Range<u32>,
     state: &mut TrackState,
+    source: Option<&mut dyn MaskSource>,
     on_frame: &mut dyn FnMut(&FrameResult, &FrameMasks) -> Result<()>,
 ) -> Result<()> {
     let settings = &settings.for_capture(capture);
@@ -273,6 +298,21 @@ pub fn track_frames(
             )
         });
     let penalties = Penalties { contact, manifold };
+    if let Some(source) = source {
+        for frame in frames {
+            let started = Instant::now();
+            let masks = source.frame_masks(frame, &starts(state))?;
+            let result = track_frame(
+                capture, engine, settings, &centres, &prior, &penalties, frame, &masks, state,
+            )?;
+            let result = FrameResult {
+                seconds: started.elapsed().as_secs_f64(),
+                ..result
+            };
+            on_frame(&result, &masks)?;
+        }
+        return Ok(());
+    }
     std::thread::scope(|scope| {
         let (tx, rx) = sync_channel::<(u32, Result<FrameMasks>)>(2);
         let reader_frames = frames.clone();
@@ -329,14 +369,7 @@ fn track_frame(
     let mut evaluations = 0;
     // Start, per arch, from whichever fits this frame best: the last good pose, its
     // constant-velocity extrapolation, or the latest low-confidence estimate since.
-    let mut starts = vec![state.last];
-    if let Some(before) = &state.before {
-        starts.push(ArchPoses {
-            upper: extrapolate(&state.last.upper, &before.upper),
-            lower: extrapolate(&state.last.lower, &before.lower),
-        });
-    }
-    starts.extend(state.since_good);
+    let starts = starts(state);
     let mut poses = state.last;
     let passes = match capture.mask_mode {
         MaskMode::PerArch { .. } => settings.per_arch_passes,

@@ -10,7 +10,7 @@ use std::time::Instant;
 use super::output::TracksWriter;
 use super::overlay;
 use super::score::{ScoreReport, score};
-use super::sequence::{FrameResult, Status, TrackSettings, track_frames};
+use super::sequence::{FrameResult, MaskSource, Status, TrackSettings, track_frames};
 use super::state::TrackState;
 use crate::capture::json::FrameRecordJson;
 use crate::capture::{ArchPoses, Capture};
@@ -150,7 +150,16 @@ impl<'c> Session<'c> {
     }
 
     /// Track every frame to do; `on_frame` sees each as it is written (for progress).
-    pub fn run(mut self, on_frame: &mut dyn FnMut(&FrameResult)) -> Result<Summary> {
+    pub fn run(self, on_frame: &mut dyn FnMut(&FrameResult)) -> Result<Summary> {
+        self.run_with(None, on_frame)
+    }
+
+    /// [`Session::run`] with the masks from `source` instead of the capture's files.
+    pub fn run_with(
+        mut self,
+        source: Option<&mut dyn MaskSource>,
+        on_frame: &mut dyn FnMut(&FrameResult),
+    ) -> Result<Summary> {
         let started = Instant::now();
         let (mut evaluations, mut tracked_now) = (0, 0);
         let (capture, writer, overlays) = (self.capture, &mut self.writer, &self.options.overlays);
@@ -160,6 +169,7 @@ impl<'c> Session<'c> {
             &self.options.settings,
             self.todo.clone(),
             &mut self.state,
+            source,
             &mut |r, masks| {
                 writer.push(r)?;
                 if let Some(dir) = overlays {

@@ -1,0 +1,139 @@
+use std::path::PathBuf;
+
+use anyhow::Context;
+use jawtrack::capture::Capture;
+use jawtrack::energy::Region;
+use jawtrack::segment::{SegmentSettings, Segmenter, prepare, score::score_masks};
+use jawtrack::track::{Session, SessionOptions, score_records};
+
+use super::args::{EnergyArg, EngineArgs, LoadArgs, parse_frames, read_settings, track_settings};
+
+#[derive(clap::Args)]
+pub struct Args {
+    /// The capture folder, with images/<camera>/ (from `jawtrack import video`), init.json
+    /// and capture.json's `masks` block (the values the masks are written with).
+    pub capture: PathBuf,
+    /// Where to write tracks.json (the masks go to the capture's masks folder).
+    #[arg(short, long)]
+    pub output: PathBuf,
+    /// Frames to do: `A..B` (B excluded) or `A..=B`; default all.
+    #[arg(long)]
+    pub frames: Option<String>,
+    #[command(flatten)]
+    pub engine: EngineArgs,
+    /// Replace masks already in the masks folder (they may be corrections made by hand: by
+    /// default they are never overwritten) and an existing tracks.json.
+    #[arg(long)]
+    pub force: bool,
+    /// Continue an interrupted run after its last complete frame (the colour models are
+    /// learned again there).
+    #[arg(long)]
+    pub resume: bool,
+    /// Write the paper's overlay pictures per camera and frame into this folder.
+    #[arg(long)]
+    pub overlays: Option<PathBuf>,
+    #[command(flatten)]
+    pub load: LoadArgs,
+    /// Tracking settings as JSON (as for `track`).
+    #[arg(long)]
+    pub settings: Option<PathBuf>,
+    /// Segmentation settings as JSON (the fields of `SegmentSettings`, docs/footage.md): a
+    /// file, or the JSON itself when it starts with `{`.
+    #[arg(long)]
+    pub segment_settings: Option<PathBuf>,
+    #[arg(long, value_enum, default_value_t = EnergyArg::Full)]
+    pub energy: EnergyArg,
+}
+
+pub fn run(a: Args) -> anyhow::Result<()> {
+    let segment_settings = match &a.segment_settings {
+        None => SegmentSettings::default(),
+        Some(arg) => {
+            let (s, source): (SegmentSettings, _) = read_settings(arg, "segmentation settings")?;
+            s.validate(source)?;
+            s
+        }
+    };
+    let options = jawtrack::capture::OpenOptions {
+        masks_to_come: true,
+        ..a.load.open_options()
+    };
+    let mut capture = Capture::open_with(&a.capture, options)
+        .with_context(|| format!("invalid capture {}", a.capture.display()))?;
+    super::report::notes(&capture);
+    let frames = a
+        .frames
+        .as_deref()
+        .map(|s| parse_frames(s, &capture))
+        .transpose()?;
+    let existing = capture
+        .cameras
+        .iter()
+        .map(|c| c.frames_present.len())
+        .sum::<usize>();
+    if existing > 0 && !a.force && !a.resume {
+        anyhow::bail!(
+            "{} already holds {existing} masks (perhaps corrected by hand): track from them \
+             with `jawtrack track`, or pass --force to make them again",
+            capture.mask_dir.display()
+        );
+    }
+    if capture.mouth.is_none() {
+        eprintln!(
+            "note: capture.json's masks block has no `mouth` value, so the masks carry the \
+             teeth alone (add e.g. \"mouth\": 40 to keep the mouth interior)"
+        );
+    }
+    let sizes = prepare(&mut capture)?;
+    let track_options = SessionOptions {
+        frames,
+        backend: a.engine.backend.into(),
+        region: a.engine.region.map_or(Region::Relevant, Into::into),
+        overlays: a.overlays,
+        resume: a.resume,
+        force: a.force,
+        settings: track_settings(a.settings.as_deref(), a.energy)?,
+        ..SessionOptions::new(&a.output)
+    };
+    let session = Session::open(&capture, track_options)?;
+    eprintln!("energy backend: {}", session.backend());
+    let todo = session.todo();
+    let mut segmenter = Segmenter::new(&capture, &sizes, segment_settings);
+    let bar = super::progress_bar(todo.len() as u64, "segmenting and tracking");
+    let summary = session.run_with(Some(&mut segmenter), &mut |r| {
+        bar.set_message(format!("segmenting and tracking ({})", r.status.as_str()));
+        bar.inc(1);
+    })?;
+    bar.finish_and_clear();
+    super::report::track_summary(&a.output, &summary);
+    if summary.tracked_now > 0 {
+        println!(
+            "segmentation {:.2} s per frame of that (all cameras)",
+            segmenter.seconds / summary.tracked_now as f64
+        );
+    }
+    println!("masks written to {}:", capture.mask_dir.display());
+    for (cam, c) in capture.cameras.iter().zip(&segmenter.counts) {
+        println!(
+            "  {:<8} {} segmented, {} dark (lights off), {} with the arches out of view, {} without a picture",
+            cam.calibrated.name, c.segmented, c.dark, c.out_of_view, c.no_picture
+        );
+    }
+    if let Some(s) = score_masks(&capture, todo)? {
+        let opt = |v: Option<f64>| v.map_or("-".to_string(), |v| format!("{v:.3}"));
+        println!(
+            "against gt/masks ({} pictures): IoU teeth {:.3} (worst picture {:.3}), upper {}, lower {}, mouth interior {}",
+            s.pictures,
+            s.teeth_iou,
+            s.worst_teeth_iou,
+            opt(s.upper_iou),
+            opt(s.lower_iou),
+            opt(s.mouth_iou)
+        );
+    }
+    if let Some(report) = score_records(&capture, &a.output, &summary.records)? {
+        println!();
+        super::report::score(&report);
+    }
+    Ok(())
+}

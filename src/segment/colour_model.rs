@@ -1,0 +1,109 @@
+//! A colour model of one kind of surface (teeth, mouth interior, lips and skin): a histogram
+//! over chromaticity (r and g of r+g+b, 16 levels each) and luma (8 levels), smoothed across
+//! neighbouring bins so that colours a few levels apart count alike (sensor noise,
+//! compression), learned per capture from the pixels the segmentation gave that class and
+//! updated as tracking goes. Chromaticity apart from brightness keeps a tooth in its own
+//! shadow a tooth: shading changes its luma, hardly its hue.
+
+/// Levels along each axis: r chromaticity, g chromaticity, luma.
+const AXES: [usize; 3] = [16, 16, 8];
+const BINS: usize = AXES[0] * AXES[1] * AXES[2];
+/// The density every bin keeps, as a share of the uniform density: no colour is impossible.
+const FLOOR: f32 = 0.01;
+
+#[derive(Debug, Clone)]
+pub struct ColourModel {
+    density: Vec<f32>,
+}
+
+fn bin(c: [u8; 3]) -> usize {
+    let [r, g, b] = c.map(|v| v as f32);
+    let sum = (r + g + b).max(1.0);
+    let level = |v: f32, levels: usize| ((v * levels as f32) as usize).min(levels - 1);
+    let (rc, gc) = (level(r / sum, AXES[0]), level(g / sum, AXES[1]));
+    let l = level(luma(c) / 256.0, AXES[2]);
+    (rc * AXES[1] + gc) * AXES[2] + l
+}
+
+pub fn luma(c: [u8; 3]) -> f32 {
+    0.299 * c[0] as f32 + 0.587 * c[1] as f32 + 0.114 * c[2] as f32
+}
+
+impl ColourModel {
+    /// Learned from the colours given; `None` from fewer than `min_pixels`.
+    pub fn learn(colours: impl Iterator<Item = [u8; 3]>, min_pixels: usize) -> Option<ColourModel> {
+        let mut counts = vec![0f32; BINS];
+        let mut n = 0usize;
+        for c in colours {
+            counts[bin(c)] += 1.0;
+            n += 1;
+        }
+        if n < min_pixels.max(1) {
+            return None;
+        }
+        // [1 2 1] / 4 along each channel.
+        let strides = [AXES[1] * AXES[2], AXES[2], 1];
+        for axis in 0..3 {
+            let (stride, levels) = (strides[axis], AXES[axis]);
+            let before = counts.clone();
+            for (i, c) in counts.iter_mut().enumerate() {
+                let level = i / stride % levels;
+                let lo = if level > 0 {
+                    before[i - stride]
+                } else {
+                    before[i]
+                };
+                let hi = if level + 1 < levels {
+                    before[i + stride]
+                } else {
+                    before[i]
+                };
+                *c = 0.25 * lo + 0.5 * before[i] + 0.25 * hi;
+            }
+        }
+        let floor = FLOOR * n as f32 / BINS as f32;
+        let total: f32 = counts.iter().map(|c| c + floor).sum();
+        Some(ColourModel {
+            density: counts
+                .iter()
+                .map(|c| (c + floor) / total * BINS as f32)
+                .collect(),
+        })
+    }
+
+    /// Every colour as likely as any: for a class with nothing yet to learn from.
+    pub fn uniform() -> ColourModel {
+        ColourModel {
+            density: vec![1.0; BINS],
+        }
+    }
+
+    /// Move towards `fresh` by `rate` (0: keep, 1: replace).
+    pub fn update(&mut self, fresh: &ColourModel, rate: f32) {
+        for (d, f) in self.density.iter_mut().zip(&fresh.density) {
+            *d += rate * (f - *d);
+        }
+    }
+
+    /// The density of a colour, relative to a uniform one (1: as likely as any).
+    pub fn density(&self, c: [u8; 3]) -> f32 {
+        self.density[bin(c)]
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn a_learned_colour_is_likelier_than_an_unseen_one_and_nothing_is_impossible() {
+        let teeth = ColourModel::learn(
+            (0..500).map(|k| [225 + (k % 7) as u8, 215, 190 + (k % 5) as u8]),
+            10,
+        )
+        .unwrap();
+        assert!(teeth.density([228, 216, 192]) > 100.0 * teeth.density([170, 80, 85]));
+        assert!(teeth.density([0, 0, 255]) > 0.0);
+        assert!(ColourModel::learn([[1, 2, 3]].into_iter(), 10).is_none());
+    }
+}

@@ -1,0 +1,277 @@
+//! Masks the program makes from the colour frames (`jawtrack segment`), as tracking goes:
+//! each frame's prior is the models drawn where tracking expects them (init.json's poses at
+//! the first frame, then the tracked ones and their constant-velocity extrapolation), the
+//! colour models of teeth, mouth interior and lips/skin are learned per camera from the first
+//! picture and follow the later ones (the region-based idea of PWP3D, RBOT and M3T), and two
+//! graph cuts make the labels spatially coherent (`picture`). Every mask is written in the
+//! capture format, so a user can look at any frame, correct it and track again.
+
+pub mod colour_model;
+pub mod graph_cut;
+pub mod picture;
+pub mod score;
+pub mod settings;
+
+use std::path::Path;
+
+use rayon::prelude::*;
+
+use crate::capture::masks::MOUTH_BIT;
+use crate::capture::{
+    ArchPoses, Capture, FrameMasks, LOWER_BIT, LabelMask, MaskMode, UPPER_BIT, write_atomic,
+};
+use crate::energy::raster::render_labels;
+use crate::error::{Error, Result};
+use crate::geometry::Camera;
+use crate::track::MaskSource;
+use picture::{Models, Outcome, segment_picture};
+pub use settings::SegmentSettings;
+
+/// The largest picture read (pixels): a GoPro's 5.3K is 15.9 Mpx.
+const MAX_PIXELS: u64 = 1 << 26;
+
+/// How the pictures of one camera came out over a run.
+#[derive(Debug, Clone, Default, serde::Serialize)]
+pub struct CameraCounts {
+    pub segmented: usize,
+    pub dark: usize,
+    pub out_of_view: usize,
+    pub no_picture: usize,
+}
+
+/// Makes each frame's masks from its pictures, writes them, and hands them to tracking.
+pub struct Segmenter<'c> {
+    capture: &'c Capture,
+    /// Per camera, the calibrated camera scaled to its pictures.
+    cameras: Vec<Camera>,
+    models: Vec<Option<Models>>,
+    settings: SegmentSettings,
+    pub counts: Vec<CameraCounts>,
+    /// Seconds spent segmenting (reading pictures and writing masks included).
+    pub seconds: f64,
+}
+
+/// The size of each camera's pictures (from its first picture in the capture's frames), and
+/// the capture's cameras told that their masks will have that size (divided by the
+/// capture's `mask_reduce`), so tracking can be set up before the first mask exists.
+pub fn prepare(capture: &mut Capture) -> Result<Vec<(u32, u32)>> {
+    let mut sizes = Vec::with_capacity(capture.cameras.len());
+    for k in 0..capture.cameras.len() {
+        let path = capture
+            .frames()
+            .find_map(|f| capture.image_path(k, f))
+            .ok_or_else(|| Error::Missing {
+                path: capture
+                    .dir
+                    .join("images")
+                    .join(&capture.cameras[k].calibrated.name),
+                what: "pictures of the capture's frames (images/<camera>/<frame:06>.png|jpg, \
+                       from `jawtrack import video`)"
+                    .into(),
+            })?;
+        let (w, h) = image::image_dimensions(&path).map_err(|e| Error::Image {
+            path: path.clone(),
+            problem: e.to_string(),
+        })?;
+        check_size(&path, (w, h), &capture.cameras[k].calibrated)?;
+        let r = capture.mask_reduce.max(1);
+        if w % r != 0 || h % r != 0 {
+            return Err(Error::invalid(
+                &path,
+                "size",
+                format!("{w}x{h} is not divisible by the mask reduction {r}"),
+            ));
+        }
+        capture.cameras[k].mask_size = Some((w / r, h / r));
+        sizes.push((w, h));
+    }
+    Ok(sizes)
+}
+
+/// A picture must be within the size limit and have the calibrated image's shape.
+fn check_size(path: &Path, (w, h): (u32, u32), cam: &Camera) -> Result<()> {
+    if w == 0 || h == 0 || w as u64 * h as u64 > MAX_PIXELS {
+        return Err(Error::invalid(
+            path,
+            "size",
+            format!("{w}x{h} is not a picture this reads (at most {MAX_PIXELS} pixels)"),
+        ));
+    }
+    let (sx, sy) = (w as f64 / cam.width as f64, h as f64 / cam.height as f64);
+    if (sx / sy - 1.0).abs() > 0.01 {
+        return Err(Error::invalid(
+            path,
+            "size",
+            format!(
+                "{w}x{h} does not have the shape of camera {}'s calibrated {}x{}",
+                cam.name, cam.width, cam.height
+            ),
+        ));
+    }
+    Ok(())
+}
+
+impl<'c> Segmenter<'c> {
+    /// `sizes`: what [`prepare`] found.
+    pub fn new(
+        capture: &'c Capture,
+        sizes: &[(u32, u32)],
+        settings: SegmentSettings,
+    ) -> Segmenter<'c> {
+        Segmenter {
+            cameras: capture
+                .cameras
+                .iter()
+                .zip(sizes)
+                .map(|(c, &(w, h))| c.calibrated.scaled_to(w, h))
+                .collect(),
+            models: vec![None; capture.cameras.len()],
+            counts: vec![CameraCounts::default(); capture.cameras.len()],
+            capture,
+            settings,
+            seconds: 0.0,
+        }
+    }
+
+    /// One camera's picture of `frame` segmented and its mask written; `None` where it gave
+    /// no mask.
+    fn camera_mask(
+        &self,
+        k: usize,
+        frame: u32,
+        expected: &[ArchPoses],
+        models: &mut Option<Models>,
+        counts: &mut CameraCounts,
+    ) -> Result<Option<LabelMask>> {
+        let capture = self.capture;
+        let mask_path = capture.mask_path(k, frame);
+        let Some(path) = capture.image_path(k, frame) else {
+            counts.no_picture += 1;
+            return remove_stale(&mask_path).map(|_| None);
+        };
+        let cam = &self.cameras[k];
+        let (w, h) = image::image_dimensions(&path).map_err(|e| Error::Image {
+            path: path.clone(),
+            problem: e.to_string(),
+        })?;
+        if (w, h) != (cam.width, cam.height) {
+            return Err(Error::invalid(
+                &path,
+                "size",
+                format!(
+                    "{w}x{h} differs from the camera's other pictures ({}x{})",
+                    cam.width, cam.height
+                ),
+            ));
+        }
+        let rgb = image::open(&path)
+            .map_err(|e| Error::Image {
+                path: path.clone(),
+                problem: e.to_string(),
+            })?
+            .into_rgb8()
+            .into_raw();
+        // The prior: the models drawn at every pose tracking will start from.
+        let mut prior = vec![0u8; (w * h) as usize];
+        for poses in expected {
+            let drawn = render_labels(
+                cam,
+                &[
+                    (&capture.upper, &poses.upper, UPPER_BIT, UPPER_BIT),
+                    (&capture.lower, &poses.lower, LOWER_BIT, LOWER_BIT),
+                ],
+            );
+            for (p, d) in prior.iter_mut().zip(drawn) {
+                if *p == 0 {
+                    *p = d;
+                }
+            }
+        }
+        let labels =
+            match segment_picture(&rgb, w as usize, h as usize, &prior, models, &self.settings) {
+                Outcome::Labels(l) => l,
+                Outcome::Dark => {
+                    counts.dark += 1;
+                    return remove_stale(&mask_path).map(|_| None);
+                }
+                Outcome::OutOfView => {
+                    counts.out_of_view += 1;
+                    return remove_stale(&mask_path).map(|_| None);
+                }
+            };
+        counts.segmented += 1;
+        let values = encode_values(&labels, capture.mask_mode, capture.mouth);
+        write_atomic(&mask_path, &png_grey(&values, w, h))?;
+        let mask = LabelMask {
+            width: w,
+            height: h,
+            // As the tracker reads a written mask back: the mouth only when declared.
+            data: values
+                .iter()
+                .map(|&v| capture.mask_mode.label_of(v, capture.mouth))
+                .collect(),
+        };
+        Ok(Some(mask.reduced(capture.mask_reduce)))
+    }
+}
+
+impl MaskSource for Segmenter<'_> {
+    fn frame_masks(&mut self, frame: u32, expected: &[ArchPoses]) -> Result<FrameMasks> {
+        let started = std::time::Instant::now();
+        let mut models = std::mem::take(&mut self.models);
+        let mut counts = std::mem::take(&mut self.counts);
+        let this = &*self;
+        let masks: Vec<Result<Option<LabelMask>>> = models
+            .par_iter_mut()
+            .zip(counts.par_iter_mut())
+            .enumerate()
+            .map(|(k, (m, c))| this.camera_mask(k, frame, expected, m, c))
+            .collect();
+        self.models = models;
+        self.counts = counts;
+        self.seconds += started.elapsed().as_secs_f64();
+        Ok(FrameMasks {
+            frame,
+            masks: masks.into_iter().collect::<Result<_>>()?,
+        })
+    }
+}
+
+/// A frame that gives no mask now must not keep one from an earlier run.
+fn remove_stale(path: &Path) -> Result<()> {
+    match std::fs::remove_file(path) {
+        Ok(()) => Ok(()),
+        Err(e) if e.kind() == std::io::ErrorKind::NotFound => Ok(()),
+        Err(error) => Err(Error::Write {
+            path: path.to_path_buf(),
+            error,
+        }),
+    }
+}
+
+/// Label bits to the capture's mask values (capture.json `masks`).
+pub fn encode_values(labels: &[u8], mode: MaskMode, mouth: Option<u8>) -> Vec<u8> {
+    labels
+        .iter()
+        .map(|&l| match mode {
+            MaskMode::PerArch { upper, .. } if l & UPPER_BIT != 0 => upper,
+            MaskMode::PerArch { lower, .. } if l & LOWER_BIT != 0 => lower,
+            MaskMode::Combined if l & (UPPER_BIT | LOWER_BIT) != 0 => 255,
+            _ if l & MOUTH_BIT != 0 => mouth.unwrap_or(0),
+            _ => 0,
+        })
+        .collect()
+}
+
+fn png_grey(grey: &[u8], width: u32, height: u32) -> Vec<u8> {
+    use image::ImageEncoder;
+    let mut out = Vec::new();
+    image::codecs::png::PngEncoder::new_with_quality(
+        &mut out,
+        image::codecs::png::CompressionType::Fast,
+        image::codecs::png::FilterType::Adaptive,
+    )
+    .write_image(grey, width, height, image::ExtendedColorType::L8)
+    .expect("encoding a grey image into memory cannot fail");
+    out
+}

@@ -1,0 +1,68 @@
+//! What `jawtrack segment` can be told (`--segment-settings`, JSON; docs/footage.md).
+
+use serde::{Deserialize, Serialize};
+
+use crate::error::{Error, Result};
+
+#[derive(Debug, Clone, Serialize, Deserialize, PartialEq)]
+#[serde(default, deny_unknown_fields)]
+pub struct SegmentSettings {
+    /// How far from the models' projection teeth may still be found, as a share of the
+    /// picture's width (the prior falls off as exp(-d / reach)): how far the arches may move
+    /// beyond the constant-velocity prediction in a frame.
+    pub reach: f64,
+    /// The graph cuts' smoothness: what a label change costs between two pixels of the same
+    /// colour, in nats (less between pixels of different colours).
+    pub smoothness: f64,
+    /// How fast the colour models follow each frame (0: learned once, 1: relearned each frame).
+    pub learning_rate: f32,
+    /// Rounds of segmenting and relearning on the first picture of each camera.
+    pub learning_rounds: usize,
+    /// A picture whose region around the mouth is darker than this share of what it was
+    /// when the models were learned is taken as lights-off: no mask.
+    pub dark_ratio: f64,
+    /// The fewest pixels a class needs to learn its colours from.
+    pub min_pixels: usize,
+}
+
+impl Default for SegmentSettings {
+    fn default() -> Self {
+        SegmentSettings {
+            reach: 0.008,
+            smoothness: 3.0,
+            learning_rate: 0.25,
+            learning_rounds: 4,
+            dark_ratio: 0.5,
+            min_pixels: 20,
+        }
+    }
+}
+
+impl SegmentSettings {
+    /// Every field in its range; `source` names where they came from.
+    pub fn validate(&self, source: &std::path::Path) -> Result<()> {
+        let bad = |field: &str, why: &str| Err(Error::invalid(source, field, why.to_string()));
+        if !(self.reach.is_finite() && self.reach > 0.0 && self.reach <= 0.5) {
+            return bad(
+                "reach",
+                "must be above 0 and at most 0.5 (a share of the width)",
+            );
+        }
+        if !(self.smoothness.is_finite() && (0.0..=100.0).contains(&self.smoothness)) {
+            return bad("smoothness", "must be 0..100 (nats)");
+        }
+        if !(self.learning_rate.is_finite() && (0.0..=1.0).contains(&self.learning_rate)) {
+            return bad("learning_rate", "must be 0..1");
+        }
+        if !(1..=20).contains(&self.learning_rounds) {
+            return bad("learning_rounds", "must be 1..20");
+        }
+        if !(self.dark_ratio.is_finite() && (0.0..1.0).contains(&self.dark_ratio)) {
+            return bad("dark_ratio", "must be 0 or more and below 1");
+        }
+        if self.min_pixels == 0 || self.min_pixels > 1_000_000 {
+            return bad("min_pixels", "must be 1..1000000");
+        }
+        Ok(())
+    }
+}

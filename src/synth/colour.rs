@@ -1,0 +1,193 @@
+//! Colour frames of a synthetic capture, as a camera would film them, and the true labels
+//! they show: shaded crowns with highlights between the lips, the dark mouth interior, lips
+//! and skin with some texture, sensor noise, and a light that can be switched off (the sync
+//! event of the paper's Section 5).
+
+use nalgebra::Vector3;
+use rand::RngExt;
+
+use super::masks::{self, LipLine};
+use super::{LOWER_LABEL, MOUTH_LABEL, UPPER_LABEL};
+use crate::capture::{ArchPoses, Mesh};
+use crate::energy::raster::render_target;
+use crate::geometry::Camera;
+
+/// What the camera sees of the subject: one frame's colour picture and its true labels.
+pub struct ColourFrame {
+    /// RGB, row-major, 3 bytes a pixel.
+    pub rgb: Vec<u8>,
+    /// The capture format's mask values: upper and lower crowns where visible, the mouth
+    /// interior inside the lip opening, 0 elsewhere.
+    pub labels: Vec<u8>,
+}
+
+/// The lighting of one picture.
+#[derive(Debug, Clone, Copy)]
+pub struct Exposure {
+    /// Overall brightness (1: lights on; the lights off leave a few percent).
+    pub gain: f64,
+    /// Per-channel white balance of the camera.
+    pub white: [f64; 3],
+}
+
+const TEETH: [f64; 3] = [232.0, 222.0, 196.0];
+const MOUTH: [f64; 3] = [70.0, 24.0, 30.0];
+const LIP: [f64; 3] = [172.0, 84.0, 88.0];
+const SKIN: [f64; 3] = [212.0, 164.0, 138.0];
+/// How tall the lips are beyond the opening (mm at the subject).
+const LIP_HEIGHT_MM: f64 = 9.0;
+
+#[allow(clippy::too_many_arguments)]
+pub fn render_colour(
+    cam: &Camera,
+    meshes: [&Mesh; 2],
+    poses: &ArchPoses,
+    lips: &[LipLine; 2],
+    show: [f64; 2],
+    exposure: Exposure,
+    rng: &mut impl rand::Rng,
+) -> ColourFrame {
+    let (w, h) = (cam.width as usize, cam.height as usize);
+    let target = render_target(
+        cam,
+        &[
+            (meshes[0], &poses.upper, UPPER_LABEL, UPPER_LABEL),
+            (meshes[1], &poses.lower, LOWER_LABEL, LOWER_LABEL),
+        ],
+    );
+    let opening = masks::lip_opening(cam, poses, lips, show);
+    // The lips' height in pixels at the incisors' distance.
+    let depth = cam
+        .camera_from_world
+        .compose(&poses.upper)
+        .translation
+        .z
+        .max(1.0);
+    let lip_px = cam.fx * LIP_HEIGHT_MM / depth;
+    let texture = SmoothNoise::new(w, h, 9, rng);
+    let point = |x: usize, y: usize| -> Option<Vector3<f64>> {
+        let inv_z = target.inv_depth[y * w + x] as f64;
+        (inv_z > 0.0).then(|| {
+            let z = 1.0 / inv_z;
+            Vector3::new(
+                (x as f64 - cam.cx) / cam.fx * z,
+                (y as f64 - cam.cy) / cam.fy * z,
+                z,
+            )
+        })
+    };
+    // Light from just above the lens (a ring light), in camera axes: towards the subject is +z.
+    let to_light = Vector3::new(0.0, -0.35, -1.0).normalize();
+    let mut rgb = vec![0u8; w * h * 3];
+    let mut linear = vec![[0f64; 3]; w * h];
+    let mut labels = vec![0u8; w * h];
+    for y in 0..h {
+        for (x, &(top, bottom)) in opening.iter().enumerate().take(w) {
+            let i = y * w + x;
+            let inside = (y as f64) > top && (y as f64) < bottom;
+            let class = target.class[i];
+            let t = texture.at(x, y);
+            let colour = if inside && class != 0 {
+                labels[i] = class;
+                let p = point(x, y).expect("a drawn pixel has a depth");
+                let near = |dx: i64, dy: i64| {
+                    let (nx, ny) = (x as i64 + dx, y as i64 + dy);
+                    (nx >= 0 && ny >= 0 && (nx as usize) < w && (ny as usize) < h)
+                        .then_some((nx as usize, ny as usize))
+                        .filter(|&(nx, ny)| target.class[ny * w + nx] == class)
+                        .and_then(|(nx, ny)| point(nx, ny))
+                        .unwrap_or(p)
+                };
+                let du = near(1, 0) - near(-1, 0);
+                let dv = near(0, 1) - near(0, -1);
+                let mut n = du.cross(&dv);
+                if n.norm() < 1e-12 {
+                    n = -p;
+                }
+                let mut n = n.normalize();
+                if n.dot(&p) > 0.0 {
+                    n = -n;
+                }
+                let diffuse = n.dot(&to_light).max(0.0);
+                let half = (to_light - p.normalize()).normalize();
+                let specular = 0.55 * n.dot(&half).max(0.0).powi(40);
+                TEETH.map(|c| c * (1.0 + 0.05 * t) * (0.35 + 0.65 * diffuse) + 255.0 * specular)
+            } else if inside {
+                labels[i] = MOUTH_LABEL;
+                // Darker towards the middle of the opening, where the throat is.
+                let middle = ((y as f64 - top) / (bottom - top).max(1.0) - 0.5).abs() * 2.0;
+                MOUTH.map(|c| c * (0.75 + 0.35 * middle) * (1.0 + 0.15 * t))
+            } else {
+                let beyond = if top.is_finite() && bottom.is_finite() && top < bottom {
+                    (top - y as f64).max(y as f64 - bottom)
+                } else {
+                    f64::INFINITY
+                };
+                if beyond < lip_px {
+                    LIP.map(|c| c * (1.0 + 0.08 * t))
+                } else {
+                    SKIN.map(|c| c * (1.0 + 0.06 * t))
+                }
+            };
+            linear[i] = colour;
+        }
+    }
+    // A lens a little out of focus: [1 2 1] / 4 along rows, then columns.
+    let linear = blur(&blur(&linear, w, h, 1), w, h, w);
+    for (i, colour) in linear.iter().enumerate() {
+        for k in 0..3 {
+            let noise = rng.random_range(-4.0..=4.0);
+            let v = colour[k] * exposure.gain * exposure.white[k] + noise;
+            rgb[i * 3 + k] = v.round().clamp(0.0, 255.0) as u8;
+        }
+    }
+    ColourFrame { rgb, labels }
+}
+
+/// [1 2 1] / 4 between each pixel and its neighbours `step` apart (1: along rows, the
+/// width: along columns), the border repeated.
+fn blur(src: &[[f64; 3]], w: usize, h: usize, step: usize) -> Vec<[f64; 3]> {
+    (0..src.len())
+        .map(|i| {
+            let (x, y) = (i % w, i / w);
+            let (has_before, has_after) = if step == 1 {
+                (x > 0, x + 1 < w)
+            } else {
+                (y > 0, y + 1 < h)
+            };
+            let before = if has_before { src[i - step] } else { src[i] };
+            let after = if has_after { src[i + step] } else { src[i] };
+            std::array::from_fn(|k| 0.25 * before[k] + 0.5 * src[i][k] + 0.25 * after[k])
+        })
+        .collect()
+}
+
+/// A smooth random field in [-1, 1]: a grid of values `cell` pixels apart, bilinear between.
+struct SmoothNoise {
+    grid: Vec<f64>,
+    columns: usize,
+    cell: usize,
+}
+
+impl SmoothNoise {
+    fn new(w: usize, h: usize, cell: usize, rng: &mut impl rand::Rng) -> SmoothNoise {
+        let columns = w / cell + 2;
+        let rows = h / cell + 2;
+        SmoothNoise {
+            grid: (0..columns * rows)
+                .map(|_| rng.random_range(-1.0..=1.0))
+                .collect(),
+            columns,
+            cell,
+        }
+    }
+
+    fn at(&self, x: usize, y: usize) -> f64 {
+        let (fx, fy) = (x as f64 / self.cell as f64, y as f64 / self.cell as f64);
+        let (ix, iy) = (fx as usize, fy as usize);
+        let (tx, ty) = (fx - ix as f64, fy - iy as f64);
+        let g = |i: usize, j: usize| self.grid[j * self.columns + i];
+        (g(ix, iy) * (1.0 - tx) + g(ix + 1, iy) * tx) * (1.0 - ty)
+            + (g(ix, iy + 1) * (1.0 - tx) + g(ix + 1, iy + 1) * tx) * ty
+    }
+}
