@@ -23,7 +23,7 @@ pub use camera::{camera_from_json, read_camera};
 use json::{ArchInitJson, BoiJson, CaptureJson, InitJson, TracksJson, check_finite, read_json};
 pub use masks::{LOWER_BIT, LabelMask, MaskMode, UPPER_BIT};
 pub use mesh::{BoiSource, Mesh, Simplify};
-pub use write::{check_replaceable, write_atomic, write_json_atomic};
+pub use write::{check_replaceable, encode_png, write_atomic, write_json_atomic};
 
 /// A camera of the capture with what was found of its masks.
 #[derive(Debug)]

@@ -52,3 +52,23 @@ pub fn write_json_atomic<T: serde::Serialize>(path: &Path, value: &T) -> Result<
     text.push(b'\n');
     write_atomic(path, &text)
 }
+
+/// An 8-bit grey (`L8`) or RGB (`Rgb8`) picture as PNG bytes, fast compression: masks and
+/// pictures the program writes.
+pub fn encode_png(
+    pixels: &[u8],
+    width: u32,
+    height: u32,
+    kind: image::ExtendedColorType,
+) -> Vec<u8> {
+    use image::ImageEncoder;
+    let mut out = Vec::new();
+    image::codecs::png::PngEncoder::new_with_quality(
+        &mut out,
+        image::codecs::png::CompressionType::Fast,
+        image::codecs::png::FilterType::Adaptive,
+    )
+    .write_image(pixels, width, height, kind)
+    .expect("a buffer of the stated size encodes into memory");
+    out
+}

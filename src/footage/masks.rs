@@ -341,15 +341,7 @@ pub fn import_masks(
             }
         }
         let (w, h) = size.expect("a frame has a file");
-        let mut png = Vec::new();
-        image::ImageEncoder::write_image(
-            image::codecs::png::PngEncoder::new(&mut png),
-            &out,
-            w,
-            h,
-            image::ExtendedColorType::L8,
-        )
-        .map_err(|e| Error::invalid(&out_dir, "mask", e.to_string()))?;
+        let png = crate::capture::encode_png(&out, w, h, image::ExtendedColorType::L8);
         write_atomic(&out_dir.join(format!("{frame:06}.png")), &png)?;
         imported.frames += 1;
     }

@@ -58,6 +58,16 @@ impl GridCut {
         self.arcs[j][REVERSE[d]] = w;
     }
 
+    /// Whether `child` (the neighbour of `parent` in direction `d`) can hang from `parent` in
+    /// the source's tree (flow parent → child) or the sink's (flow child → parent).
+    fn tree_arc(&self, parent: usize, d: usize, child: usize, sink: bool) -> bool {
+        if sink {
+            self.arcs[child][REVERSE[d]] > 0.0
+        } else {
+            self.arcs[parent][d] > 0.0
+        }
+    }
+
     fn neighbour(&self, i: usize, d: usize) -> Option<usize> {
         let (x, y) = (i % self.width, i / self.width);
         match d {
@@ -105,12 +115,7 @@ impl GridCut {
                 let Some(j) = self.neighbour(i, d) else {
                     continue;
                 };
-                let open = if s.sink[i] {
-                    self.arcs[j][REVERSE[d]] > 0.0
-                } else {
-                    self.arcs[i][d] > 0.0
-                };
-                if !open {
+                if !self.tree_arc(i, d, j, s.sink[i]) {
                     continue;
                 }
                 if s.parent[j] == NONE {
@@ -232,13 +237,7 @@ impl GridCut {
                 if s.sink[j] != sink || s.parent[j] == NONE {
                     continue;
                 }
-                // The arc that would carry flow along the tree towards i.
-                let open = if sink {
-                    self.arcs[i][d] > 0.0
-                } else {
-                    self.arcs[j][REVERSE[d]] > 0.0
-                };
-                if !open {
+                if !self.tree_arc(j, REVERSE[d], i, sink) {
                     continue;
                 }
                 if let Some(dist) = self.origin_distance(s, j)
@@ -262,12 +261,7 @@ impl GridCut {
                         if s.sink[j] != sink || s.parent[j] == NONE {
                             continue;
                         }
-                        let open = if sink {
-                            self.arcs[i][d] > 0.0
-                        } else {
-                            self.arcs[j][REVERSE[d]] > 0.0
-                        };
-                        if open {
+                        if self.tree_arc(j, REVERSE[d], i, sink) {
                             s.activate(j);
                         }
                         let pj = s.parent[j];

@@ -18,7 +18,8 @@ use rayon::prelude::*;
 
 use crate::capture::masks::MOUTH_BIT;
 use crate::capture::{
-    ArchPoses, Capture, FrameMasks, LOWER_BIT, LabelMask, MaskMode, UPPER_BIT, write_atomic,
+    ArchPoses, Capture, FrameMasks, LOWER_BIT, LabelMask, MaskMode, UPPER_BIT, encode_png,
+    write_atomic,
 };
 use crate::energy::raster::render_labels;
 use crate::error::{Error, Result};
@@ -201,7 +202,10 @@ impl<'c> Segmenter<'c> {
             };
         counts.segmented += 1;
         let values = encode_values(&labels, capture.mask_mode, capture.mouth);
-        write_atomic(&mask_path, &png_grey(&values, w, h))?;
+        write_atomic(
+            &mask_path,
+            &encode_png(&values, w, h, image::ExtendedColorType::L8),
+        )?;
         let mask = LabelMask {
             width: w,
             height: h,
@@ -261,17 +265,4 @@ pub fn encode_values(labels: &[u8], mode: MaskMode, mouth: Option<u8>) -> Vec<u8
             _ => 0,
         })
         .collect()
-}
-
-fn png_grey(grey: &[u8], width: u32, height: u32) -> Vec<u8> {
-    use image::ImageEncoder;
-    let mut out = Vec::new();
-    image::codecs::png::PngEncoder::new_with_quality(
-        &mut out,
-        image::codecs::png::CompressionType::Fast,
-        image::codecs::png::FilterType::Adaptive,
-    )
-    .write_image(grey, width, height, image::ExtendedColorType::L8)
-    .expect("encoding a grey image into memory cannot fail");
-    out
 }

@@ -481,24 +481,11 @@ fn render_mask(
 }
 
 fn encode_png(grey: &[u8], width: u32, height: u32) -> Vec<u8> {
-    encode(grey, width, height, image::ExtendedColorType::L8)
+    crate::capture::encode_png(grey, width, height, image::ExtendedColorType::L8)
 }
 
 fn encode_png_rgb(rgb: &[u8], width: u32, height: u32) -> Vec<u8> {
-    encode(rgb, width, height, image::ExtendedColorType::Rgb8)
-}
-
-fn encode(pixels: &[u8], width: u32, height: u32, kind: image::ExtendedColorType) -> Vec<u8> {
-    use image::ImageEncoder;
-    let mut out = Vec::new();
-    image::codecs::png::PngEncoder::new_with_quality(
-        &mut out,
-        image::codecs::png::CompressionType::Fast,
-        image::codecs::png::FilterType::Adaptive,
-    )
-    .write_image(pixels, width, height, kind)
-    .expect("encoding an image into memory cannot fail");
-    out
+    crate::capture::encode_png(rgb, width, height, image::ExtendedColorType::Rgb8)
 }
 
 /// Write a synthetic capture to `out`. `progress` is called once per finished frame.

@@ -298,18 +298,21 @@ pub fn track_frames(
             )
         });
     let penalties = Penalties { contact, manifold };
+    let mut step = |frame: u32, masks: FrameMasks, started: Instant, state: &mut TrackState| {
+        let result = track_frame(
+            capture, engine, settings, &centres, &prior, &penalties, frame, &masks, state,
+        )?;
+        let result = FrameResult {
+            seconds: started.elapsed().as_secs_f64(),
+            ..result
+        };
+        on_frame(&result, &masks)
+    };
     if let Some(source) = source {
         for frame in frames {
             let started = Instant::now();
             let masks = source.frame_masks(frame, &starts(state))?;
-            let result = track_frame(
-                capture, engine, settings, &centres, &prior, &penalties, frame, &masks, state,
-            )?;
-            let result = FrameResult {
-                seconds: started.elapsed().as_secs_f64(),
-                ..result
-            };
-            on_frame(&result, &masks)?;
+            step(frame, masks, started, state)?;
         }
         return Ok(());
     }
@@ -324,16 +327,7 @@ pub fn track_frames(
             }
         });
         for (frame, masks) in rx {
-            let started = Instant::now();
-            let masks = masks?;
-            let result = track_frame(
-                capture, engine, settings, &centres, &prior, &penalties, frame, &masks, state,
-            )?;
-            let result = FrameResult {
-                seconds: started.elapsed().as_secs_f64(),
-                ..result
-            };
-            on_frame(&result, &masks)?;
+            step(frame, masks?, Instant::now(), state)?;
         }
         Ok(())
     })
