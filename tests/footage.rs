@@ -503,3 +503,142 @@ fn segment_makes_masks_from_colour_frames() {
     assert!(!again.status.success());
     assert_mentions(&String::from_utf8_lossy(&again.stderr), &["--force"]);
 }
+
+/// An OpenCV 4 FileStorage file for a capture's camera file, translation in millimetres.
+fn opencv_yaml(camera: &serde_json::Value) -> String {
+    let num = |v: &serde_json::Value| format!("{:e}", v.as_f64().unwrap());
+    let list = |v: Vec<&serde_json::Value>| v.into_iter().map(num).collect::<Vec<_>>().join(", ");
+    let matrix = |name: &str, rows: usize, cols: usize, data: String| {
+        format!(
+            "{name}: !!opencv-matrix\n   rows: {rows}\n   cols: {cols}\n   dt: d\n   data: [ {data} ]\n"
+        )
+    };
+    let c = camera;
+    let zero = serde_json::json!(0.0);
+    let one = serde_json::json!(1.0);
+    let k = list(vec![
+        &c["fx"], &zero, &c["cx"], &zero, &c["fy"], &c["cy"], &zero, &zero, &one,
+    ]);
+    let d = list(c["distortion"].as_array().unwrap().iter().collect());
+    let r = list((0..9).map(|i| &c["rotation"][i / 3][i % 3]).collect());
+    let t = list((0..3).map(|i| &c["translation"][i]).collect());
+    format!(
+        "%YAML:1.0\n---\nimage_width: {}\nimage_height: {}\n{}{}{}{}",
+        c["width"],
+        c["height"],
+        matrix("camera_matrix", 3, 3, k),
+        matrix("distortion_coefficients", 1, 5, d),
+        matrix("R", 3, 3, r),
+        matrix("T", 3, 1, t),
+    )
+}
+
+/// README's checklist, from the camera bag to tracks.json: three cameras film in colour
+/// (`synth --images`), started at different moments, each with a light switched off and on
+/// in its own frame; their frames go to MP4 through ffmpeg and their calibration to OpenCV
+/// YAML. Then import video → import cameras → sync → segment, no mask given, and the jaw
+/// is tracked from the masks the program made, within a margin of what this writes today
+/// (docs/footage.md).
+#[test]
+fn from_videos_and_calibration_files_to_tracks() {
+    if !have_ffmpeg() {
+        return;
+    }
+    let t = tempfile::tempdir().unwrap();
+    let filmed = t.path().join("filmed");
+    ok(&[
+        "synth",
+        s(&filmed),
+        "--frames",
+        "18",
+        "--images",
+        "--light-off",
+        "6..9",
+    ]);
+    // Each camera's recording starts at this frame of the filmed scene, so its files run
+    // that much behind cam0's and the light goes off in its frame 6 - start.
+    let starts = [("cam0", 0), ("cam1", 2), ("cam2", 1)];
+    let cap = t.path().join("cap");
+    let (mut videos, mut calibration) = (vec![], vec![]);
+    for (name, start) in starts {
+        let video = t.path().join(format!("{name}.mp4"));
+        let st = Command::new("ffmpeg")
+            .args(["-v", "error", "-y", "-framerate", "24", "-start_number"])
+            .arg(start.to_string())
+            .arg("-i")
+            .arg(filmed.join("images").join(name).join("%06d.png"))
+            .args(["-c:v", "libx264", "-pix_fmt", "yuv420p"])
+            .arg(&video)
+            .status()
+            .unwrap();
+        assert!(st.success());
+        videos.push(format!("{name}={}", s(&video)));
+        let camera: serde_json::Value = serde_json::from_str(
+            &std::fs::read_to_string(filmed.join(format!("cameras/{name}.json"))).unwrap(),
+        )
+        .unwrap();
+        let yaml = t.path().join(format!("{name}.yml"));
+        std::fs::write(&yaml, opencv_yaml(&camera)).unwrap();
+        calibration.push(s(&yaml).to_owned());
+    }
+    let mut cmd = vec!["import", "video", s(&cap)];
+    cmd.extend(videos.iter().map(String::as_str));
+    ok(&cmd);
+    let mut cmd = vec!["import", "cameras", s(&cap)];
+    cmd.extend(calibration.iter().map(String::as_str));
+    ok(&cmd);
+
+    // The scans and capture.json, as a user writes them: the masks are still to come.
+    common::copy_dir(&filmed.join("meshes"), &cap.join("meshes"));
+    let mut doc: serde_json::Value =
+        serde_json::from_str(&std::fs::read_to_string(filmed.join("capture.json")).unwrap())
+            .unwrap();
+    doc["frames"] = serde_json::json!({"first": 0, "count": 16});
+    let cj = cap.join("capture.json");
+    std::fs::write(&cj, doc.to_string()).unwrap();
+    let out = ok(&["sync", s(&cap), "--fps", "24"]);
+    assert_mentions(&out, &["frames.offsets written"]);
+    let mut doc: serde_json::Value =
+        serde_json::from_str(&std::fs::read_to_string(&cj).unwrap()).unwrap();
+    assert_eq!(
+        doc["frames"]["offsets"],
+        serde_json::json!({"cam0": 2, "cam1": 0, "cam2": 1}),
+        "{out}"
+    );
+
+    // Capture frame f is cam1's file f, filmed as frame f + 2: track from the first frame
+    // lit again (filmed frame 9), started from its true poses, scored against the truth.
+    let shift = 2;
+    let first = 9 - shift;
+    let count = 6;
+    doc["frames"]["first"] = first.into();
+    doc["frames"]["count"] = count.into();
+    std::fs::write(&cj, doc.to_string()).unwrap();
+    let mut truth: serde_json::Value =
+        serde_json::from_str(&std::fs::read_to_string(filmed.join("gt/poses.json")).unwrap())
+            .unwrap();
+    let frames = truth["frames"].as_array_mut().unwrap();
+    frames.retain(|f| f["frame"].as_i64().unwrap() >= shift);
+    for f in frames.iter_mut() {
+        f["frame"] = (f["frame"].as_i64().unwrap() - shift).into();
+    }
+    let start = frames.iter().find(|f| f["frame"] == first).unwrap().clone();
+    std::fs::create_dir_all(cap.join("gt")).unwrap();
+    std::fs::write(cap.join("gt/poses.json"), truth.to_string()).unwrap();
+    let init = serde_json::json!({"upper": start["upper"], "lower": start["lower"]});
+    std::fs::write(cap.join("init.json"), init.to_string()).unwrap();
+
+    let tracks = t.path().join("tracks.json");
+    ok(&["segment", s(&cap), "-o", s(&tracks), "--backend", "cpu"]);
+    for f in first..first + count {
+        assert!(cap.join(format!("masks/cam1/{f:06}.png")).exists());
+        // cam0's files run two frames ahead.
+        assert!(cap.join(format!("masks/cam0/{:06}.png", f + 2)).exists());
+    }
+    let score = ok(&["score", s(&cap), s(&tracks), "--json"]);
+    let report: serde_json::Value = serde_json::from_str(&score).unwrap();
+    let jaw = &report["jaw"]["mean_vertex_mm"];
+    eprintln!("jaw from footage: {jaw}");
+    assert!(jaw["median"].as_f64().unwrap() < 1.0, "{score}");
+    assert!(jaw["max"].as_f64().unwrap() < 3.0, "{score}");
+}
