@@ -20,5 +20,6 @@ pub mod skin;
 pub mod stats;
 pub mod synth;
 pub mod track;
+pub mod view;
 
 pub use error::{Error, Result};

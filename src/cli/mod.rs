@@ -19,6 +19,7 @@ mod sync;
 mod synth;
 mod track;
 mod validate;
+mod view;
 
 use std::process::ExitCode;
 
@@ -58,6 +59,8 @@ enum Command {
     /// Learn the three-parameter jaw rig from jaw poses, and use it.
     #[command(subcommand)]
     Rig(rig::Command),
+    /// The rig for animators in the browser: sliders, drag IK, keyframes, the tracked timeline.
+    View(view::Args),
     /// The empirical jaw rig on Posselt's envelope (Zoss et al. 2018).
     #[command(subcommand)]
     Envelope(envelope::Command),
@@ -86,6 +89,7 @@ pub fn main() -> ExitCode {
         Command::Energy(a) => energy::run(a),
         Command::Export(a) => export::run(a),
         Command::Rig(c) => rig::run(c),
+        Command::View(a) => view::run(a),
         Command::Envelope(c) => envelope::run(c),
         Command::Skin(c) => skin::run(c),
         Command::Mesh(c) => mesh::run(c),

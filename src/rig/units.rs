@@ -40,7 +40,9 @@ impl JawRig {
         self
     }
 
-    fn motion_frame(&self) -> Option<MotionFrame> {
+    /// The rest bite and jaw axes the animator units are measured on (`None` without the
+    /// anatomy).
+    pub fn motion_frame(&self) -> Option<MotionFrame> {
         let a = self.anatomy.as_ref()?;
         let rest = a
             .rest

@@ -2,6 +2,7 @@
 #![allow(dead_code)]
 
 use std::path::{Path, PathBuf};
+use std::process::Command;
 use std::sync::OnceLock;
 
 use jawtrack::synth::{MaskKind, Preset, SynthOptions, generate};
@@ -192,4 +193,45 @@ pub fn assert_mentions(msg: &str, parts: &[&str]) {
     for p in parts {
         assert!(msg.contains(p), "error {msg:?} does not mention {p:?}");
     }
+}
+
+/// `{errors, warnings, animations}` from the Khronos validator, or `None` when it is not
+/// installed (and not required).
+pub fn validate_gltf(gltf: &Path) -> Option<serde_json::Value> {
+    let dir = std::env::var_os("JAWTRACK_GLTF_VALIDATOR").map(PathBuf::from);
+    let found = dir
+        .as_ref()
+        .is_some_and(|d| d.join("node_modules/gltf-validator").is_dir());
+    if !found {
+        assert!(
+            std::env::var_os("JAWTRACK_REQUIRE_GLTF_VALIDATOR").is_none(),
+            "JAWTRACK_REQUIRE_GLTF_VALIDATOR is set but JAWTRACK_GLTF_VALIDATOR ({dir:?}) holds no node_modules/gltf-validator"
+        );
+        eprintln!(
+            "skipped the glTF validator: set JAWTRACK_GLTF_VALIDATOR to a folder with `npm install gltf-validator` done"
+        );
+        return None;
+    }
+    let script = r#"
+const fs = require("fs");
+const v = require("gltf-validator");
+const path = process.argv[process.argv.length - 1];
+v.validateBytes(new Uint8Array(fs.readFileSync(path)), { uri: path, maxIssues: 0 }).then((r) => {
+  console.log(JSON.stringify({ errors: r.issues.numErrors, warnings: r.issues.numWarnings,
+    animations: r.info.animationCount, messages: r.issues.messages.slice(0, 5) }));
+}).catch((e) => { console.error(e); process.exit(2); });
+"#;
+    let out = Command::new("node")
+        .arg("-e")
+        .arg(script)
+        .arg(gltf)
+        .env("NODE_PATH", dir.unwrap().join("node_modules"))
+        .output()
+        .expect("node runs");
+    assert!(
+        out.status.success(),
+        "{}",
+        String::from_utf8_lossy(&out.stderr)
+    );
+    Some(serde_json::from_slice(&out.stdout).unwrap())
 }

@@ -1,0 +1,17 @@
+//! The rig for animators in the browser (`jawtrack view`): a local page that draws the arches
+//! and mandible with WebGL2, three sliders in degrees and mm whose lateral and protrusion
+//! ranges follow the opening, IK by dragging a vertex (Eq. 10), keyframes exported as glTF,
+//! and, with a tracked capture, a timeline of the motion with each camera's overlay.
+//!
+//! The server ([`serve`]) answers the page's questions through [`Viewer`]; the drawing, the
+//! orbit camera, picking and the keys live in the page (`page/view.js`).
+
+mod page;
+mod scene;
+mod server;
+
+pub use scene::{
+    AnimationQuery, IkQuery, IkReply, Meshes, Part, PoseQuery, PoseReply, Refused, SceneReply,
+    Tracked, Viewer,
+};
+pub use server::serve;

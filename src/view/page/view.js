@@ -1,0 +1,574 @@
+// jawtrack view: the arches and mandible in WebGL2, the rig's sliders in degrees and mm, IK by
+// dragging a vertex, keyframes, and the tracked timeline. The server answers every question
+// about the rig (src/view/scene.rs); this page draws, picks and keeps the keys.
+"use strict";
+
+const $ = (id) => document.getElementById(id);
+const NAMES = ["opening", "lateral", "protrusion"];
+const UNITS = ["°", "mm", "mm"];
+const COLOURS = { upper: [0.93, 0.91, 0.85], lower: [0.80, 0.86, 0.95], mandible: [0.82, 0.74, 0.62] };
+const OUT_OF_RANGE = [0.95, 0.45, 0.40];
+
+// What the tests and a curious user can reach from the console.
+const view = {
+  ready: false,
+  error: null,
+  params: [0, 0, 0], // the network's, from the last reply
+  reply: null,
+  keys: [],
+  redraws: [], // ms from a slider's input to the frame drawn
+  lastDrag: null,
+  trackedFrame: null,
+};
+window.view = view;
+
+// ---- small matrix helpers (column-major, as WebGL takes them) ----
+function mul(a, b) {
+  const o = new Float64Array(16);
+  for (let c = 0; c < 4; c++)
+    for (let r = 0; r < 4; r++) {
+      let s = 0;
+      for (let k = 0; k < 4; k++) s += a[k * 4 + r] * b[c * 4 + k];
+      o[c * 4 + r] = s;
+    }
+  return o;
+}
+function transform(m, p) {
+  const w = m[3] * p[0] + m[7] * p[1] + m[11] * p[2] + m[15];
+  return [0, 1, 2].map((r) => (m[r] * p[0] + m[4 + r] * p[1] + m[8 + r] * p[2] + m[12 + r]) / w);
+}
+function perspective(fovy, aspect, near, far) {
+  const f = 1 / Math.tan(fovy / 2), o = new Float64Array(16);
+  o[0] = f / aspect; o[5] = f; o[10] = (far + near) / (near - far); o[11] = -1;
+  o[14] = (2 * far * near) / (near - far);
+  return o;
+}
+const sub = (a, b) => [a[0] - b[0], a[1] - b[1], a[2] - b[2]];
+const dot = (a, b) => a[0] * b[0] + a[1] * b[1] + a[2] * b[2];
+const cross = (a, b) => [a[1] * b[2] - a[2] * b[1], a[2] * b[0] - a[0] * b[2], a[0] * b[1] - a[1] * b[0]];
+const norm = (a) => { const l = Math.hypot(a[0], a[1], a[2]) || 1; return [a[0] / l, a[1] / l, a[2] / l]; };
+function lookAt(eye, at, up) {
+  const z = norm(sub(eye, at)), x = norm(cross(up, z)), y = cross(z, x);
+  return Float64Array.from([x[0], y[0], z[0], 0, x[1], y[1], z[1], 0, x[2], y[2], z[2], 0,
+    -dot(x, eye), -dot(y, eye), -dot(z, eye), 1]);
+}
+function invert(m) {
+  // Gauss-Jordan on a 4x4 (row-major copy of the column-major input).
+  const a = [];
+  for (let r = 0; r < 4; r++) a.push([0, 1, 2, 3].map((c) => m[c * 4 + r]).concat([0, 1, 2, 3].map((c) => (c === r ? 1 : 0))));
+  for (let c = 0; c < 4; c++) {
+    let p = c;
+    for (let r = c + 1; r < 4; r++) if (Math.abs(a[r][c]) > Math.abs(a[p][c])) p = r;
+    [a[c], a[p]] = [a[p], a[c]];
+    const d = a[c][c];
+    for (let k = 0; k < 8; k++) a[c][k] /= d;
+    for (let r = 0; r < 4; r++) if (r !== c) { const f = a[r][c]; for (let k = 0; k < 8; k++) a[r][k] -= f * a[c][k]; }
+  }
+  const o = new Float64Array(16);
+  for (let r = 0; r < 4; r++) for (let c = 0; c < 4; c++) o[c * 4 + r] = a[r][4 + c];
+  return o;
+}
+const IDENTITY = Float64Array.from([1, 0, 0, 0, 0, 1, 0, 0, 0, 0, 1, 0, 0, 0, 0, 1]);
+
+// ---- the server ----
+async function ask(path, body) {
+  const init = body === undefined ? {} : { method: "POST", headers: { "Content-Type": "application/json" }, body: JSON.stringify(body) };
+  const r = await fetch(path, init);
+  if (!r.ok) {
+    const e = await r.json().catch(() => ({ error: r.statusText }));
+    throw new Error(e.error || r.statusText);
+  }
+  return r;
+}
+
+// ---- WebGL2 ----
+const canvas = $("gl");
+const gl = canvas.getContext("webgl2", { antialias: false, preserveDrawingBuffer: true });
+const VERTEX = `#version 300 es
+in vec3 pos; in vec3 nrm;
+uniform mat4 viewProj; uniform mat4 model;
+out vec3 n; out vec3 wpos;
+void main() { vec4 w = model * vec4(pos, 1.0); wpos = w.xyz; n = mat3(model) * nrm; gl_Position = viewProj * w; }`;
+const FRAGMENT = `#version 300 es
+precision highp float;
+in vec3 n; in vec3 wpos; uniform vec3 colour; uniform vec3 eye; out vec4 o;
+void main() {
+  vec3 N = normalize(n); vec3 V = normalize(eye - wpos);
+  if (dot(N, V) < 0.0) N = -N;
+  float d = max(dot(N, normalize(V + vec3(0.0, 0.6, 0.0))), 0.0);
+  float s = pow(max(dot(N, normalize(V + normalize(V + vec3(0.0, 0.6, 0.0)))), 0.0), 40.0);
+  o = vec4(colour * (0.22 + 0.78 * d) + 0.15 * s, 1.0);
+}`;
+function program() {
+  const shader = (type, src) => {
+    const s = gl.createShader(type);
+    gl.shaderSource(s, src);
+    gl.compileShader(s);
+    if (!gl.getShaderParameter(s, gl.COMPILE_STATUS)) throw new Error(gl.getShaderInfoLog(s));
+    return s;
+  };
+  const p = gl.createProgram();
+  gl.attachShader(p, shader(gl.VERTEX_SHADER, VERTEX));
+  gl.attachShader(p, shader(gl.FRAGMENT_SHADER, FRAGMENT));
+  gl.bindAttribLocation(p, 0, "pos");
+  gl.bindAttribLocation(p, 1, "nrm");
+  gl.linkProgram(p);
+  if (!gl.getProgramParameter(p, gl.LINK_STATUS)) throw new Error(gl.getProgramInfoLog(p));
+  return p;
+}
+
+// A mesh from the server's bytes: counts (u32), positions (f32, mm), indices (u32).
+async function loadMesh(name) {
+  const buf = await (await ask(`/mesh/${name}.bin`)).arrayBuffer();
+  const [nv, nt] = new Uint32Array(buf, 0, 2);
+  const positions = new Float32Array(buf, 8, nv * 3);
+  const indices = new Uint32Array(buf, 8 + nv * 12, nt * 3);
+  const normals = new Float32Array(nv * 3);
+  for (let t = 0; t < nt * 3; t += 3) {
+    const [a, b, c] = [indices[t], indices[t + 1], indices[t + 2]];
+    const pa = [positions[3 * a], positions[3 * a + 1], positions[3 * a + 2]];
+    const e1 = sub([positions[3 * b], positions[3 * b + 1], positions[3 * b + 2]], pa);
+    const e2 = sub([positions[3 * c], positions[3 * c + 1], positions[3 * c + 2]], pa);
+    const f = cross(e1, e2);
+    for (const v of [a, b, c]) for (let k = 0; k < 3; k++) normals[3 * v + k] += f[k];
+  }
+  const vao = gl.createVertexArray();
+  gl.bindVertexArray(vao);
+  for (const [loc, data] of [[0, positions], [1, normals]]) {
+    const b = gl.createBuffer();
+    gl.bindBuffer(gl.ARRAY_BUFFER, b);
+    gl.bufferData(gl.ARRAY_BUFFER, data, gl.STATIC_DRAW);
+    gl.enableVertexAttribArray(loc);
+    gl.vertexAttribPointer(loc, 3, gl.FLOAT, false, 0, 0);
+  }
+  const ib = gl.createBuffer();
+  gl.bindBuffer(gl.ELEMENT_ARRAY_BUFFER, ib);
+  gl.bufferData(gl.ELEMENT_ARRAY_BUFFER, indices, gl.STATIC_DRAW);
+  gl.bindVertexArray(null);
+  return { name, positions, count: nt * 3, vao };
+}
+
+// ---- the scene ----
+const state = {
+  meshes: {},
+  jaw: IDENTITY,
+  outOfRange: false,
+  orbit: { yaw: 0.35, pitch: 0.15, dist: 120, target: [0, 0, 0] },
+  viewProj: IDENTITY,
+  eye: [0, 0, 100],
+};
+let prog, uViewProj, uModel, uColour, uEye;
+
+function camera() {
+  const o = state.orbit;
+  const eye = [
+    o.target[0] + o.dist * Math.cos(o.pitch) * Math.sin(o.yaw),
+    o.target[1] + o.dist * Math.sin(o.pitch),
+    o.target[2] + o.dist * Math.cos(o.pitch) * Math.cos(o.yaw),
+  ];
+  state.eye = eye;
+  state.viewProj = mul(perspective(0.6, canvas.width / canvas.height, 1, 2000), lookAt(eye, o.target, [0, 1, 0]));
+}
+
+// Draw, wait for the picture to be done (software GL draws asynchronously), return the ms.
+function draw() {
+  const t0 = performance.now();
+  camera();
+  gl.viewport(0, 0, canvas.width, canvas.height);
+  gl.clearColor(0.17, 0.19, 0.22, 1);
+  gl.clear(gl.COLOR_BUFFER_BIT | gl.DEPTH_BUFFER_BIT);
+  gl.enable(gl.DEPTH_TEST);
+  gl.useProgram(prog);
+  gl.uniformMatrix4fv(uViewProj, false, Float32Array.from(state.viewProj));
+  gl.uniform3fv(uEye, state.eye);
+  for (const [name, m] of Object.entries(state.meshes)) {
+    const moving = name !== "upper";
+    gl.uniformMatrix4fv(uModel, false, Float32Array.from(moving ? state.jaw : IDENTITY));
+    gl.uniform3fv(uColour, moving && state.outOfRange ? OUT_OF_RANGE : COLOURS[name]);
+    gl.bindVertexArray(m.vao);
+    gl.drawElements(gl.TRIANGLES, m.count, gl.UNSIGNED_INT, 0);
+  }
+  gl.bindVertexArray(null);
+  gl.finish();
+  drawMarks();
+  return performance.now() - t0;
+}
+
+// ---- picking and projection ----
+function movingPart() {
+  return state.meshes.mandible ? "mandible" : "lower";
+}
+function posed(part, vertex) {
+  const p = state.meshes[part].positions;
+  return transform(state.jaw, [p[3 * vertex], p[3 * vertex + 1], p[3 * vertex + 2]]);
+}
+// A point of the upper frame in the canvas' CSS pixels, with its depth (NDC z).
+function toCanvas(point) {
+  const c = transform(state.viewProj, point);
+  const r = canvas.getBoundingClientRect();
+  return [((c[0] + 1) / 2) * r.width, ((1 - c[1]) / 2) * r.height, c[2]];
+}
+// The point of the upper frame under a canvas pixel, on the plane through `through` facing the viewer.
+function underCursor(x, y, through) {
+  const r = canvas.getBoundingClientRect();
+  const nx = (2 * x) / r.width - 1, ny = 1 - (2 * y) / r.height;
+  const inv = invert(state.viewProj);
+  const a = transform(inv, [nx, ny, -1]), b = transform(inv, [nx, ny, 1]);
+  const dir = sub(b, a), normal = norm(sub(state.eye, state.orbit.target));
+  const t = dot(sub(through, a), normal) / dot(dir, normal);
+  return [a[0] + t * dir[0], a[1] + t * dir[1], a[2] + t * dir[2]];
+}
+// The front-most vertex of the moving part within 10 px of the cursor.
+function pick(x, y) {
+  let best = null;
+  for (const part of ["mandible", "lower"]) {
+    const m = state.meshes[part];
+    if (!m) continue;
+    const n = m.positions.length / 3;
+    for (let v = 0; v < n; v++) {
+      const [sx, sy, sz] = toCanvas(posed(part, v));
+      const d = Math.hypot(sx - x, sy - y);
+      if (d < 10 && (!best || sz < best.depth - 1e-4 || (Math.abs(sz - best.depth) <= 1e-4 && d < best.d)))
+        best = { part, vertex: v, depth: sz, d };
+    }
+  }
+  return best;
+}
+
+const marks = $("marks").getContext("2d");
+let drag = null;
+function drawMarks() {
+  marks.clearRect(0, 0, 760, 560);
+  if (!drag) return;
+  const dot = (p, colour) => {
+    const [x, y] = toCanvas(p);
+    marks.fillStyle = colour;
+    marks.beginPath();
+    marks.arc(x, y, 4, 0, 2 * Math.PI);
+    marks.fill();
+  };
+  if (drag.target) dot(drag.target, "#ffeb3b");
+  dot(posed(drag.part, drag.vertex), "#ff5252");
+}
+
+// ---- the rig's answers ----
+let sliderInputAt = null;
+function apply(reply, { setSliders }) {
+  view.reply = reply;
+  view.params = reply.params;
+  state.jaw = Float64Array.from(reply.jaw);
+  state.outOfRange = !reply.valid;
+  const a = reply.animator;
+  const values = [a.opening_deg, a.lateral_mm, a.protrusion_mm];
+  NAMES.forEach((n, i) => {
+    if (setSliders) $(n).value = values[i];
+    $(`${n}-value`).textContent = `${values[i].toFixed(UNITS[i] === "°" ? 1 : 2)} ${UNITS[i]}`;
+  });
+  band("lateral", reply.lateral_range_mm);
+  band("protrusion", reply.protrusion_range_mm);
+  const status = [];
+  status.push(reply.valid ? '<span class="ok">inside the learned ranges</span>' : '<span class="bad">out of range</span>');
+  if (!reply.reached) status.push('<span class="bad">the rig reaches no pose with these values</span>');
+  status.push(`incisal point ${a.incisal_opening_mm.toFixed(1)} mm down`);
+  $("status").innerHTML = status.join("<br>");
+  const ms = draw();
+  if (sliderInputAt !== null) {
+    const total = performance.now() - sliderInputAt;
+    sliderInputAt = null;
+    view.redraws.push(total);
+    $("frame-time").textContent = `redraw ${total.toFixed(1)} ms after the slider moved (drawing ${ms.toFixed(1)} ms)`;
+  }
+}
+// The valid band of a slider, green on its track.
+function band(name, range) {
+  const s = $(name);
+  if (!range) { s.style.background = "#7a3b3b"; return; }
+  const lo = Number(s.min), hi = Number(s.max);
+  const f = (v) => Math.min(100, Math.max(0, ((v - lo) / (hi - lo)) * 100));
+  s.style.background = `linear-gradient(to right, #555 ${f(range[0])}%, #4f8f52 ${f(range[0])}%, #4f8f52 ${f(range[1])}%, #555 ${f(range[1])}%)`;
+}
+
+// One question in flight at a time; the newest waiting one goes next.
+let inFlight = false, waiting = null;
+function enqueue(job) {
+  waiting = job;
+  if (!inFlight) next();
+}
+async function next() {
+  const job = waiting;
+  waiting = null;
+  if (!job) return;
+  inFlight = true;
+  try {
+    await job();
+  } catch (e) {
+    $("status").innerHTML = `<span class="bad">${e.message}</span>`;
+  }
+  inFlight = false;
+  if (waiting) next();
+}
+function sliderValues() {
+  return NAMES.map((n) => Number($(n).value));
+}
+async function poseFor(target, setSliders) {
+  const r = await (await ask("/api/pose", { target, from: view.params })).json();
+  apply(r, { setSliders });
+  return r;
+}
+for (const n of NAMES)
+  $(n).addEventListener("input", () => {
+    sliderInputAt = performance.now();
+    view.trackedFrame = null;
+    enqueue(() => poseFor(sliderValues(), false));
+  });
+
+// ---- mouse: orbit, zoom, drag IK ----
+let orbiting = null;
+canvas.addEventListener("mousedown", (e) => {
+  const hit = pick(e.offsetX, e.offsetY);
+  if (hit) {
+    drag = { part: hit.part, vertex: hit.vertex, start: posed(hit.part, hit.vertex), target: null };
+    canvas.style.cursor = "move";
+  } else {
+    orbiting = { x: e.clientX, y: e.clientY, yaw: state.orbit.yaw, pitch: state.orbit.pitch };
+    canvas.style.cursor = "grabbing";
+  }
+  e.preventDefault();
+});
+function ikTo(target) {
+  const d = drag;
+  return async () => {
+    const r = await (await ask("/api/ik", { part: d.part, vertex: d.vertex, target, from: view.params })).json();
+    apply(r, { setSliders: true });
+    view.lastDrag = { part: d.part, vertex: d.vertex, target, residual_mm: r.residual_mm, milliseconds: r.milliseconds, reached: posed(d.part, d.vertex) };
+  };
+}
+window.addEventListener("mousemove", (e) => {
+  if (drag) {
+    const r = canvas.getBoundingClientRect();
+    drag.target = underCursor(e.clientX - r.left, e.clientY - r.top, drag.start);
+    enqueue(ikTo(drag.target));
+    drawMarks();
+  } else if (orbiting) {
+    state.orbit.yaw = orbiting.yaw - (e.clientX - orbiting.x) * 0.01;
+    state.orbit.pitch = Math.max(-1.5, Math.min(1.5, orbiting.pitch + (e.clientY - orbiting.y) * 0.01));
+    draw();
+  }
+});
+window.addEventListener("mouseup", (e) => {
+  if (drag && drag.target) {
+    const r = canvas.getBoundingClientRect();
+    drag.target = underCursor(e.clientX - r.left, e.clientY - r.top, drag.start);
+    const finish = ikTo(drag.target);
+    enqueue(async () => { await finish(); drag = null; drawMarks(); });
+  } else {
+    drag = null;
+  }
+  orbiting = null;
+  canvas.style.cursor = "grab";
+});
+canvas.addEventListener("wheel", (e) => {
+  state.orbit.dist = Math.max(20, Math.min(1000, state.orbit.dist * Math.exp(e.deltaY * 0.001)));
+  draw();
+  e.preventDefault();
+}, { passive: false });
+
+// ---- keyframes ----
+function showKeys() {
+  const t = $("keys");
+  t.innerHTML = "";
+  view.keys.forEach((k, i) => {
+    const row = t.insertRow();
+    const time = document.createElement("input");
+    time.type = "number"; time.step = "0.25"; time.min = "0"; time.value = k.time;
+    time.addEventListener("change", () => { moveKey(i, Number(time.value)); });
+    row.insertCell().appendChild(time);
+    row.insertCell().textContent = `${k.params[0].toFixed(1)}°, ${k.params[1].toFixed(2)}, ${k.params[2].toFixed(2)} mm`;
+    const go = document.createElement("button");
+    go.textContent = "go"; go.onclick = () => enqueue(() => poseFor(k.params, true));
+    const del = document.createElement("button");
+    del.textContent = "✕"; del.onclick = () => { view.keys.splice(i, 1); showKeys(); };
+    row.insertCell().append(go, del);
+  });
+}
+function sortKeys() {
+  view.keys.sort((a, b) => a.time - b.time);
+}
+function setKey(time) {
+  const a = view.reply.animator;
+  const params = [a.opening_deg, a.lateral_mm, a.protrusion_mm];
+  view.keys = view.keys.filter((k) => Math.abs(k.time - time) > 1e-9);
+  view.keys.push({ time, params });
+  sortKeys();
+  showKeys();
+}
+function moveKey(i, time) {
+  if (!(time >= 0)) return;
+  view.keys[i].time = time;
+  sortKeys();
+  showKeys();
+}
+// Animator values at time t: linear between keys, held outside them (as `rig animate --animator`).
+function valuesAt(t) {
+  const k = view.keys;
+  if (t <= k[0].time) return k[0].params;
+  for (let i = 1; i < k.length; i++)
+    if (t <= k[i].time) {
+      const f = (t - k[i - 1].time) / (k[i].time - k[i - 1].time);
+      return k[i].params.map((v, j) => k[i - 1].params[j] + (v - k[i - 1].params[j]) * f);
+    }
+  return k[k.length - 1].params;
+}
+let playing = null;
+function play() {
+  if (playing) { playing = null; $("play").textContent = "Play"; return; }
+  if (view.keys.length < 2) { $("key-status").textContent = "two keys or more to play"; return; }
+  const t0 = view.keys[0].time, t1 = view.keys[view.keys.length - 1].time;
+  const started = performance.now();
+  playing = {};
+  $("play").textContent = "Stop";
+  const token = playing;
+  const step = () => {
+    if (playing !== token) return;
+    let t = t0 + (performance.now() - started) / 1000;
+    if (t > t1) {
+      if ($("loop").checked) t = t0 + ((t - t0) % Math.max(t1 - t0, 1e-6));
+      else { playing = null; $("play").textContent = "Play"; t = t1; }
+    }
+    $("key-time").value = t.toFixed(2);
+    enqueue(() => poseFor(valuesAt(t), true));
+    if (playing === token) requestAnimationFrame(step);
+  };
+  step();
+}
+function keysJson() {
+  return JSON.stringify(view.keys.map((k) => ({ time: k.time, params: k.params })), null, 1);
+}
+function importKeys(text) {
+  const keys = JSON.parse(text);
+  if (!Array.isArray(keys) || !keys.every((k) => Number.isFinite(k.time) && Array.isArray(k.params) && k.params.length === 3 && k.params.every(Number.isFinite)))
+    throw new Error('keys: expected [{"time": s, "params": [opening °, lateral mm, protrusion mm]}, ...]');
+  view.keys = keys.map((k) => ({ time: k.time, params: k.params.slice() }));
+  sortKeys();
+  showKeys();
+}
+async function exportGltf() {
+  const fps = Number($("fps").value);
+  const r = await ask("/api/animation", { keys: view.keys, fps });
+  return r.text();
+}
+function download(name, text, type) {
+  const a = document.createElement("a");
+  a.href = URL.createObjectURL(new Blob([text], { type }));
+  a.download = name;
+  a.click();
+  setTimeout(() => URL.revokeObjectURL(a.href), 1000);
+}
+$("set-key").onclick = () => setKey(Number($("key-time").value));
+$("play").onclick = play;
+$("export-keys").onclick = () => download("keys.json", keysJson(), "application/json");
+$("export-gltf").onclick = async () => {
+  try {
+    download("jaw-animation.gltf", await exportGltf(), "model/gltf+json");
+    $("key-status").textContent = "glTF written (Blender: File → Import → glTF 2.0)";
+  } catch (e) {
+    $("key-status").textContent = e.message;
+  }
+};
+$("import-keys-button").onclick = () => $("import-keys").click();
+$("import-keys").addEventListener("change", async (e) => {
+  try { importKeys(await e.target.files[0].text()); $("key-status").textContent = `${view.keys.length} keys read`; }
+  catch (err) { $("key-status").textContent = err.message; }
+});
+
+// ---- the tracked timeline ----
+function drawTimeline(tl, at) {
+  const c = $("timeline"), g = c.getContext("2d"), w = c.width, h = c.height;
+  g.fillStyle = "#2c3138"; g.fillRect(0, 0, w, h);
+  const n = tl.frames.length, x = (i) => (n === 1 ? w / 2 : (i / (n - 1)) * (w - 10) + 5);
+  tl.frames.forEach((f, i) => {
+    if (f.status === "ok") return;
+    g.fillStyle = f.status === "low-confidence" ? "#e53935" : "#888";
+    g.fillRect(x(i) - 1, h - 10, 3, 10);
+  });
+  const series = [["opening_deg", "#64b5f6"], ["lateral_mm", "#ffb74d"], ["protrusion_mm", "#81c784"]];
+  for (const [key, colour] of series) {
+    const v = tl.frames.map((f) => f.animator[key]);
+    const lo = Math.min(...v), hi = Math.max(...v), span = Math.max(hi - lo, 1e-6);
+    g.strokeStyle = colour; g.beginPath();
+    v.forEach((y, i) => { const py = h - 14 - ((y - lo) / span) * (h - 24); if (i) g.lineTo(x(i), py); else g.moveTo(x(i), py); });
+    g.stroke();
+  }
+  g.strokeStyle = "#fff"; g.beginPath(); g.moveTo(x(at), 0); g.lineTo(x(at), h); g.stroke();
+}
+function showFrame(tl, i) {
+  const f = tl.frames[i];
+  view.trackedFrame = f.frame;
+  state.jaw = Float64Array.from(f.jaw);
+  state.outOfRange = false;
+  const a = f.animator, values = [a.opening_deg, a.lateral_mm, a.protrusion_mm];
+  NAMES.forEach((n, k) => { $(n).value = values[k]; $(`${n}-value`).textContent = `${values[k].toFixed(k ? 2 : 1)} ${UNITS[k]}`; });
+  $("frame-label").textContent = `frame ${f.frame} (${f.status}): the tracked pose; the overlays draw the upper arch red, the lower yellow, the boundary of interest green, the mask white`;
+  for (const cam of tl.cameras) $(`overlay-${cam}`).src = `/overlay/${encodeURIComponent(cam)}/${f.frame}.png`;
+  drawTimeline(tl, i);
+  draw();
+}
+function setupTimeline(tl) {
+  $("track").hidden = false;
+  const scrub = $("scrub");
+  scrub.max = tl.frames.length - 1;
+  for (const cam of tl.cameras) {
+    const img = document.createElement("img");
+    img.id = `overlay-${cam}`; img.alt = cam; img.title = cam;
+    $("overlays").appendChild(img);
+  }
+  scrub.addEventListener("input", () => showFrame(tl, Number(scrub.value)));
+  $("timeline").addEventListener("click", (e) => {
+    const i = Math.round((e.offsetX / e.target.clientWidth) * (tl.frames.length - 1));
+    scrub.value = i;
+    showFrame(tl, i);
+  });
+  for (const cam of tl.cameras) $(`overlay-${cam}`).src = `/overlay/${encodeURIComponent(cam)}/${tl.frames[0].frame}.png`;
+  drawTimeline(tl, 0);
+}
+
+// ---- start ----
+async function start() {
+  if (!gl) throw new Error("this browser has no WebGL2");
+  prog = program();
+  uViewProj = gl.getUniformLocation(prog, "viewProj");
+  uModel = gl.getUniformLocation(prog, "model");
+  uColour = gl.getUniformLocation(prog, "colour");
+  uEye = gl.getUniformLocation(prog, "eye");
+  const scene = await (await ask("/api/scene")).json();
+  view.scene = scene;
+  for (const name of scene.meshes) state.meshes[name] = await loadMesh(name);
+  // Look at the teeth: the centre and size of the arches.
+  const all = [state.meshes.upper, state.meshes.lower].filter(Boolean);
+  const lo = [Infinity, Infinity, Infinity], hi = [-Infinity, -Infinity, -Infinity];
+  for (const m of all)
+    for (let i = 0; i < m.positions.length; i += 3)
+      for (let k = 0; k < 3; k++) { lo[k] = Math.min(lo[k], m.positions[i + k]); hi[k] = Math.max(hi[k], m.positions[i + k]); }
+  state.orbit.target = [0, 1, 2].map((k) => (lo[k] + hi[k]) / 2);
+  state.orbit.dist = 2.2 * Math.hypot(hi[0] - lo[0], hi[1] - lo[1], hi[2] - lo[2]);
+  const ex = scene.extent, ranges = [ex.opening_deg, ex.lateral_mm, ex.protrusion_mm];
+  NAMES.forEach((n, i) => { $(n).min = ranges[i][0]; $(n).max = ranges[i][1]; });
+  apply(scene.rest, { setSliders: true });
+  if (scene.timeline) setupTimeline(scene.timeline);
+  view.ready = true;
+}
+
+// The tests' handles: the page's own functions, driven as a user would.
+Object.assign(view, {
+  draw, pick, posed, toCanvas, setKey, keysJson, importKeys, exportGltf, valuesAt,
+  setOrbit: (yaw, pitch, dist) => { Object.assign(state.orbit, { yaw, pitch }); if (dist) state.orbit.dist = dist; draw(); },
+  canvasRect: () => { const r = canvas.getBoundingClientRect(); return { x: r.left, y: r.top, width: r.width, height: r.height }; },
+  movingPart,
+  vertexCount: (part) => (state.meshes[part] ? state.meshes[part].positions.length / 3 : 0),
+  vertexPosition: (part, v) => Array.from(state.meshes[part].positions.slice(3 * v, 3 * v + 3)),
+  dragging: () => drag !== null,
+  jaw: () => Array.from(state.jaw),
+  poseFor: (target) => poseFor(target, true),
+  idle: () => !inFlight && !waiting,
+});
+start().catch((e) => { view.error = e.message; $("status").innerHTML = `<span class="bad">${e.message}</span>`; });

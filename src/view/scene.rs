@@ -1,0 +1,446 @@
+//! What the page shows and asks: the rig with the meshes it moves, optionally a tracked
+//! capture, and the answers to the page's questions (a pose for slider values, IK for a
+//! dragged vertex, an animation as glTF, a camera's overlay) in the animator's units.
+
+use std::path::Path;
+use std::time::Instant;
+
+use nalgebra::Vector3;
+use serde::{Deserialize, Serialize};
+
+use crate::anatomy::motion::{Anatomical, MotionFrame};
+use crate::capture::json::{Status, TracksJson};
+use crate::capture::{ArchPoses, Capture, Mesh};
+use crate::error::{Error, Result};
+use crate::export::gltf::{self, Key as GltfKey, write_gltf};
+use crate::geometry::{Pose, jaw_pose};
+use crate::rig::JawRig;
+use crate::rig::animate::{Key, animate_animator};
+use crate::track::overlay::{self, ArchColours};
+
+/// The meshes the page draws: the upper arch fixed (upper frame), the lower arch and the
+/// mandible moved by the jaw pose (lower frame), all in mm.
+pub struct Meshes {
+    pub upper: Option<Mesh>,
+    pub lower: Mesh,
+    pub mandible: Option<Mesh>,
+}
+
+/// A tracked capture: its frames' poses, to scrub through with the overlays.
+pub struct Tracked {
+    pub capture: Capture,
+    pub frames: Vec<TrackedFrame>,
+}
+
+pub struct TrackedFrame {
+    pub frame: u32,
+    pub status: Status,
+    pub poses: ArchPoses,
+}
+
+impl Tracked {
+    /// The capture's tracks.json, every frame with poses (no-data frames hold the last pose).
+    pub fn read(capture: Capture, tracks: &Path) -> Result<Tracked> {
+        let json: TracksJson = crate::capture::json::read_json(tracks, "tracks file")?;
+        let mut frames = Vec::with_capacity(json.frames.len());
+        for f in &json.frames {
+            frames.push(TrackedFrame {
+                frame: f.frame,
+                status: f.status(),
+                poses: f.poses(tracks)?,
+            });
+        }
+        frames.sort_by_key(|f| f.frame);
+        if frames.is_empty() {
+            return Err(Error::invalid(tracks, "frames", "no frame to show"));
+        }
+        Ok(Tracked { capture, frames })
+    }
+}
+
+/// The page's questions are answered here.
+pub struct Viewer {
+    rig: JawRig,
+    motion: MotionFrame,
+    pub meshes: Meshes,
+    tracked: Option<Tracked>,
+    extent: Extent,
+    rest: [f64; 3],
+}
+
+/// The sliders' full travel: the training poses' span in animator units, widened by a
+/// quarter so poses beyond it can be tried (and shown out of range).
+#[derive(Debug, Clone, Serialize)]
+pub struct Extent {
+    pub opening_deg: [f64; 2],
+    pub lateral_mm: [f64; 2],
+    pub protrusion_mm: [f64; 2],
+}
+
+/// A jaw pose as the page shows it.
+#[derive(Debug, Clone, Serialize)]
+pub struct PoseReply {
+    /// The network's parameters: internal, handed back as the next query's start.
+    pub params: [f64; 3],
+    /// Whether the rig reached the animator values asked for (else `params` are the start's).
+    pub reached: bool,
+    /// Inside the alpha-shape ranges learned from the training poses.
+    pub valid: bool,
+    pub animator: AnimatorJson,
+    /// The valid lateral and protrusion at this opening (mm); `None` where the opening itself
+    /// is outside the learned ranges.
+    pub lateral_range_mm: Option<[f64; 2]>,
+    pub protrusion_range_mm: Option<[f64; 2]>,
+    /// upper_from_lower as a column-major 4x4 (mm), as WebGL takes it.
+    pub jaw: [f64; 16],
+}
+
+#[derive(Debug, Clone, Copy, Serialize, Deserialize, PartialEq)]
+pub struct AnimatorJson {
+    pub opening_deg: f64,
+    pub incisal_opening_mm: f64,
+    pub lateral_mm: f64,
+    pub protrusion_mm: f64,
+}
+
+impl From<Anatomical> for AnimatorJson {
+    fn from(a: Anatomical) -> Self {
+        AnimatorJson {
+            opening_deg: a.opening_deg,
+            incisal_opening_mm: a.incisal_opening_mm,
+            lateral_mm: a.lateral_mm,
+            protrusion_mm: a.protrusion_mm,
+        }
+    }
+}
+
+#[derive(Debug, Clone, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct PoseQuery {
+    /// Opening (degrees), lateral (mm), protrusion (mm).
+    pub target: [f64; 3],
+    pub from: Option<[f64; 3]>,
+}
+
+/// Which moving mesh a dragged vertex belongs to.
+#[derive(Debug, Clone, Copy, Deserialize, PartialEq)]
+#[serde(rename_all = "lowercase")]
+pub enum Part {
+    Lower,
+    Mandible,
+}
+
+#[derive(Debug, Clone, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct IkQuery {
+    pub part: Part,
+    pub vertex: usize,
+    /// Where the vertex should go, upper frame (mm).
+    pub target: [f64; 3],
+    pub from: [f64; 3],
+}
+
+#[derive(Debug, Clone, Serialize)]
+pub struct IkReply {
+    #[serde(flatten)]
+    pub pose: PoseReply,
+    pub residual_mm: f64,
+    pub evaluations: usize,
+    pub milliseconds: f64,
+}
+
+#[derive(Debug, Clone, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct AnimationQuery {
+    /// Keys in animator units: `params` = opening (°), lateral (mm), protrusion (mm).
+    pub keys: Vec<Key>,
+    pub fps: f64,
+}
+
+/// What the page loads first.
+#[derive(Debug, Clone, Serialize)]
+pub struct SceneReply {
+    pub rig: String,
+    pub poses: usize,
+    pub extent: Extent,
+    pub rest: PoseReply,
+    pub meshes: Vec<&'static str>,
+    pub timeline: Option<Timeline>,
+}
+
+#[derive(Debug, Clone, Serialize)]
+pub struct Timeline {
+    pub cameras: Vec<String>,
+    pub frames: Vec<TimelineFrame>,
+}
+
+#[derive(Debug, Clone, Serialize)]
+pub struct TimelineFrame {
+    pub frame: u32,
+    pub status: &'static str,
+    pub animator: AnimatorJson,
+    pub jaw: [f64; 16],
+}
+
+/// A question the page asked that has no answer: its message goes back as the reply.
+#[derive(Debug, Clone, thiserror::Error)]
+#[error("{0}")]
+pub struct Refused(pub String);
+
+fn column_major(p: &Pose) -> [f64; 16] {
+    let r = p.rotation.matrix();
+    std::array::from_fn(|i| match (i % 4, i / 4) {
+        (3, 3) => 1.0,
+        (3, _) => 0.0,
+        (row, 3) => p.translation[row],
+        (row, col) => r[(row, col)],
+    })
+}
+
+impl Viewer {
+    /// `rig_path` names the rig in errors. The rig must carry its anatomy (animator units).
+    pub fn new(
+        rig: JawRig,
+        rig_path: &Path,
+        meshes: Meshes,
+        tracked: Option<Tracked>,
+    ) -> Result<Viewer> {
+        let motion = rig.motion_frame().ok_or_else(|| {
+            Error::invalid(
+                rig_path,
+                "anatomy",
+                "the rig has no jaw frame (learned before animator units): learn it again",
+            )
+        })?;
+        // The rest bite exactly (encoding alone lands a few hundredths of a degree off).
+        let rest = rig
+            .params_for(&[0.0; 3])
+            .unwrap_or_else(|| rig.encode(motion.rest()));
+        let measured: Vec<Anatomical> = rig
+            .training_params
+            .iter()
+            .map(|d| motion.measure(&rig.pose(d)))
+            .collect();
+        let span = |f: &dyn Fn(&Anatomical) -> f64| {
+            let lo = measured.iter().map(f).fold(0.0f64, f64::min);
+            let hi = measured.iter().map(f).fold(0.0f64, f64::max);
+            let pad = 0.25 * (hi - lo).max(1.0);
+            [lo - pad, hi + pad]
+        };
+        let extent = Extent {
+            opening_deg: span(&|a| a.opening_deg),
+            lateral_mm: span(&|a| a.lateral_mm),
+            protrusion_mm: span(&|a| a.protrusion_mm),
+        };
+        Ok(Viewer {
+            rig,
+            motion,
+            meshes,
+            tracked,
+            extent,
+            rest,
+        })
+    }
+
+    fn reply(&self, params: [f64; 3], reached: bool) -> PoseReply {
+        let pose = self.rig.pose(&params);
+        let (lateral, protrusion) = self.rig.ranges.at(params[0]);
+        let span = |intervals: &[[f64; 2]], k: usize, measure: fn(&Anatomical) -> f64| {
+            let lo = intervals.iter().map(|i| i[0]).reduce(f64::min)?;
+            let hi = intervals.iter().map(|i| i[1]).reduce(f64::max)?;
+            let at = |v: f64| {
+                let mut d = params;
+                d[k] = v;
+                measure(&self.motion.measure(&self.rig.pose(&d)))
+            };
+            let (a, b) = (at(lo), at(hi));
+            Some([a.min(b), a.max(b)])
+        };
+        PoseReply {
+            params,
+            reached,
+            valid: self.rig.is_valid(&params),
+            animator: self.motion.measure(&pose).into(),
+            lateral_range_mm: span(&lateral, 1, |a| a.lateral_mm),
+            protrusion_range_mm: span(&protrusion, 2, |a| a.protrusion_mm),
+            jaw: column_major(&pose),
+        }
+    }
+
+    pub fn scene(&self) -> SceneReply {
+        let mut meshes = vec!["lower"];
+        if self.meshes.upper.is_some() {
+            meshes.insert(0, "upper");
+        }
+        if self.meshes.mandible.is_some() {
+            meshes.push("mandible");
+        }
+        SceneReply {
+            rig: self.rig.format.clone(),
+            poses: self.rig.training_params.len(),
+            extent: self.extent.clone(),
+            rest: self.reply(self.rest, true),
+            meshes,
+            timeline: self.tracked.as_ref().map(|t| Timeline {
+                cameras: t
+                    .capture
+                    .camera_names()
+                    .into_iter()
+                    .map(String::from)
+                    .collect(),
+                frames: t
+                    .frames
+                    .iter()
+                    .map(|f| {
+                        let jaw = jaw_pose(&f.poses.upper, &f.poses.lower);
+                        TimelineFrame {
+                            frame: f.frame,
+                            status: f.status.as_str(),
+                            animator: self.motion.measure(&jaw).into(),
+                            jaw: column_major(&jaw),
+                        }
+                    })
+                    .collect(),
+            }),
+        }
+    }
+
+    /// The pose with these animator values, solved from `from` (or the rest bite).
+    pub fn pose(&self, q: &PoseQuery) -> std::result::Result<PoseReply, Refused> {
+        if q.target.iter().any(|v| !v.is_finite() || v.abs() > 1e3) {
+            return Err(Refused("target: three finite numbers, |v| ≤ 1000".into()));
+        }
+        let from = q.from.unwrap_or(self.rest);
+        Ok(match self.rig.params_near(&q.target, from) {
+            Some(d) => self.reply(d, true),
+            None => self.reply(from, false),
+        })
+    }
+
+    /// IK (Eq. 10): the valid parameters that bring the vertex closest to the target.
+    pub fn ik(&self, q: &IkQuery) -> std::result::Result<IkReply, Refused> {
+        let mesh = match q.part {
+            Part::Lower => &self.meshes.lower,
+            Part::Mandible => self
+                .meshes
+                .mandible
+                .as_ref()
+                .ok_or_else(|| Refused("there is no mandible mesh".into()))?,
+        };
+        let p = mesh.positions.get(q.vertex).ok_or_else(|| {
+            Refused(format!(
+                "vertex {}: the mesh has {} vertices",
+                q.vertex,
+                mesh.positions.len()
+            ))
+        })?;
+        if q.target.iter().chain(&q.from).any(|v| !v.is_finite()) {
+            return Err(Refused("target and from: finite numbers".into()));
+        }
+        let point = Vector3::new(p[0] as f64, p[1] as f64, p[2] as f64);
+        let started = Instant::now();
+        let r = crate::rig::ik::solve(
+            &self.rig,
+            &point,
+            &Vector3::from(q.target),
+            &q.from,
+            &Default::default(),
+        );
+        let milliseconds = started.elapsed().as_secs_f64() * 1e3;
+        Ok(IkReply {
+            pose: self.reply(r.params, true),
+            residual_mm: r.residual_mm,
+            evaluations: r.evaluations,
+            milliseconds,
+        })
+    }
+
+    /// The keyed animation as glTF 2.0 (upper fixed, lower arch and mandible animated).
+    pub fn animation(&self, q: &AnimationQuery) -> std::result::Result<Vec<u8>, Refused> {
+        if !(q.fps.is_finite() && q.fps > 0.0 && q.fps <= 1000.0) {
+            return Err(Refused("fps: above 0, at most 1000".into()));
+        }
+        if q.keys.last().map_or(0.0, |k| k.time) - q.keys.first().map_or(0.0, |k| k.time) > 3600.0 {
+            return Err(Refused("keys: at most an hour of animation".into()));
+        }
+        let frames =
+            animate_animator(&self.rig, &q.keys, q.fps).map_err(|e| Refused(e.to_string()))?;
+        let keys: Vec<GltfKey> = frames
+            .iter()
+            .map(|f| GltfKey {
+                time_s: (f.frame as f64 / q.fps) as f32,
+                jaw: f.pose,
+            })
+            .collect();
+        let m = &self.meshes;
+        let upper = m.upper.as_ref().map(|u| gltf::Part {
+            name: "upper",
+            mesh: u,
+            colour: [0.95, 0.93, 0.88, 1.0],
+        });
+        let mandible = m.mandible.as_ref().map(|u| gltf::Part {
+            name: "mandible",
+            mesh: u,
+            colour: [0.85, 0.80, 0.70, 1.0],
+        });
+        let lower = gltf::Part {
+            name: "lower",
+            mesh: &m.lower,
+            colour: [0.90, 0.92, 0.95, 1.0],
+        };
+        Ok(write_gltf(
+            upper.as_ref(),
+            &lower,
+            mandible.as_ref(),
+            &keys,
+            "keyframed jaw",
+        ))
+    }
+
+    /// Camera `camera`'s picture of tracked frame `frame` with the models at its tracked
+    /// poses, the arches in distinct colours, as PNG.
+    pub fn overlay(&self, camera: &str, frame: u32) -> std::result::Result<Vec<u8>, Refused> {
+        let t = self
+            .tracked
+            .as_ref()
+            .ok_or_else(|| Refused("no capture was given".into()))?;
+        let k = t
+            .capture
+            .camera_names()
+            .iter()
+            .position(|c| *c == camera)
+            .ok_or_else(|| Refused(format!("no camera {camera:?}")))?;
+        let f = t
+            .frames
+            .iter()
+            .find(|f| f.frame == frame)
+            .ok_or_else(|| Refused(format!("frame {frame} was not tracked")))?;
+        let masks = t.capture.load_masks(frame).ok();
+        let mask = masks.as_ref().and_then(|m| m.masks[k].as_ref());
+        let rgb = overlay::picture(&t.capture, k, frame, mask, &f.poses, ArchColours::Distinct)
+            .map_err(|e| Refused(e.to_string()))?
+            .ok_or_else(|| Refused(format!("{camera}: the picture's size is not known")))?;
+        Ok(overlay::png(&rgb))
+    }
+
+    /// A mesh for WebGL: vertex and triangle counts (u32), positions (f32, mm), indices (u32),
+    /// little-endian.
+    pub fn mesh_bytes(&self, name: &str) -> Option<Vec<u8>> {
+        let m = match name {
+            "upper" => self.meshes.upper.as_ref()?,
+            "lower" => &self.meshes.lower,
+            "mandible" => self.meshes.mandible.as_ref()?,
+            _ => return None,
+        };
+        let mut out = Vec::with_capacity(8 + 12 * m.positions.len() + 12 * m.triangles.len());
+        out.extend((m.positions.len() as u32).to_le_bytes());
+        out.extend((m.triangles.len() as u32).to_le_bytes());
+        for p in &m.positions {
+            out.extend(bytemuck::cast_slice(p));
+        }
+        for t in &m.triangles {
+            out.extend(bytemuck::cast_slice(t));
+        }
+        Some(out)
+    }
+}
