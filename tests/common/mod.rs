@@ -7,6 +7,8 @@ use std::sync::OnceLock;
 
 use jawtrack::synth::{MaskKind, Preset, SynthOptions, generate};
 
+pub mod browser;
+
 /// A small synthetic capture, written once per test binary; copy it before changing it.
 pub fn template(preset: Preset, masks: MaskKind) -> &'static Path {
     static CELLS: [OnceLock<tempfile::TempDir>; 6] = [const { OnceLock::new() }; 6];

@@ -83,7 +83,7 @@ async function ask(path, body) {
 
 // ---- WebGL2 ----
 const canvas = $("gl");
-const gl = canvas.getContext("webgl2", { antialias: false, preserveDrawingBuffer: true });
+const gl = canvas.getContext("webgl2", { antialias: false });
 const VERTEX = `#version 300 es
 in vec3 pos; in vec3 nrm;
 uniform mat4 viewProj; uniform mat4 model;
@@ -132,9 +132,15 @@ async function loadMesh(name) {
     const f = cross(e1, e2);
     for (const v of [a, b, c]) for (let k = 0; k < 3; k++) normals[3 * v + k] += f[k];
   }
-  const vao = gl.createVertexArray();
-  gl.bindVertexArray(vao);
-  for (const [loc, data] of [[0, positions], [1, normals]]) {
+  const m = { name, positions, normals, indices, count: nt * 3, vao: null };
+  upload(m);
+  return m;
+}
+// The mesh's buffers on the GPU (again after a lost context).
+function upload(m) {
+  m.vao = gl.createVertexArray();
+  gl.bindVertexArray(m.vao);
+  for (const [loc, data] of [[0, m.positions], [1, m.normals]]) {
     const b = gl.createBuffer();
     gl.bindBuffer(gl.ARRAY_BUFFER, b);
     gl.bufferData(gl.ARRAY_BUFFER, data, gl.STATIC_DRAW);
@@ -143,9 +149,8 @@ async function loadMesh(name) {
   }
   const ib = gl.createBuffer();
   gl.bindBuffer(gl.ELEMENT_ARRAY_BUFFER, ib);
-  gl.bufferData(gl.ELEMENT_ARRAY_BUFFER, indices, gl.STATIC_DRAW);
+  gl.bufferData(gl.ELEMENT_ARRAY_BUFFER, m.indices, gl.STATIC_DRAW);
   gl.bindVertexArray(null);
-  return { name, positions, count: nt * 3, vao };
 }
 
 // ---- the scene ----
@@ -170,6 +175,7 @@ function camera() {
   state.viewProj = mul(perspective(0.6, canvas.width / canvas.height, 1, 2000), lookAt(eye, o.target, [0, 1, 0]));
 }
 
+const onePixel = new Uint8Array(4);
 // Draw, wait for the picture to be done (software GL draws asynchronously), return the ms.
 function draw() {
   const t0 = performance.now();
@@ -189,7 +195,8 @@ function draw() {
     gl.drawElements(gl.TRIANGLES, m.count, gl.UNSIGNED_INT, 0);
   }
   gl.bindVertexArray(null);
-  gl.finish();
+  // Reading a pixel back waits for the picture to be finished, as finish() need not.
+  gl.readPixels(0, 0, 1, 1, gl.RGBA, gl.UNSIGNED_BYTE, onePixel);
   drawMarks();
   return performance.now() - t0;
 }
@@ -533,13 +540,28 @@ function setupTimeline(tl) {
 }
 
 // ---- start ----
-async function start() {
-  if (!gl) throw new Error("this browser has no WebGL2");
+function setupProgram() {
   prog = program();
   uViewProj = gl.getUniformLocation(prog, "viewProj");
   uModel = gl.getUniformLocation(prog, "model");
   uColour = gl.getUniformLocation(prog, "colour");
   uEye = gl.getUniformLocation(prog, "eye");
+}
+// A software GL's process may be restarted under load: the page then draws again from the
+// meshes it holds, keeping the pose and the keys.
+canvas.addEventListener("webglcontextlost", (e) => {
+  e.preventDefault();
+  view.contextLost = (view.contextLost || 0) + 1;
+});
+canvas.addEventListener("webglcontextrestored", () => {
+  setupProgram();
+  for (const m of Object.values(state.meshes)) upload(m);
+  draw();
+});
+
+async function start() {
+  if (!gl) throw new Error("this browser has no WebGL2");
+  setupProgram();
   const scene = await (await ask("/api/scene")).json();
   view.scene = scene;
   for (const name of scene.meshes) state.meshes[name] = await loadMesh(name);
@@ -555,6 +577,9 @@ async function start() {
   NAMES.forEach((n, i) => { $(n).min = ranges[i][0]; $(n).max = ranges[i][1]; });
   apply(scene.rest, { setSliders: true });
   if (scene.timeline) setupTimeline(scene.timeline);
+  // `?opening=12&lateral=1&protrusion=2` opens the page at that pose (a link to a pose).
+  const asked = NAMES.map((n) => Number(new URLSearchParams(location.search).get(n) || 0));
+  if (asked.some((v) => v !== 0)) await poseFor(asked, true);
   view.ready = true;
 }
 
@@ -571,4 +596,32 @@ Object.assign(view, {
   poseFor: (target) => poseFor(target, true),
   idle: () => !inFlight && !waiting,
 });
-start().catch((e) => { view.error = e.message; $("status").innerHTML = `<span class="bad">${e.message}</span>`; });
+// `?bench=N`: sweep the opening slider N times as a user would, then write the page's frame
+// times into <pre id="bench"> (benches/view.sh reads it).
+async function bench(n) {
+  const s = $("opening"), lo = Number(s.min), hi = Number(s.max);
+  const draws = [];
+  for (let k = 0; k < n; k++) {
+    const done = view.redraws.length;
+    // Back and forth over the first two thirds of the travel in 0.5° steps, as a hand drags.
+    const span = Math.floor(((hi - lo) * 2) / 3 / 0.5), i = k % (2 * span);
+    s.value = lo + 0.5 * (i < span ? i : 2 * span - i);
+    s.dispatchEvent(new Event("input"));
+    while (view.redraws.length === done || !view.idle()) await new Promise((r) => setTimeout(r, 1));
+    draws.push(draw());
+  }
+  const sorted = (a) => a.slice().sort((x, y) => x - y);
+  const t = sorted(view.redraws.slice(1)), d = sorted(draws);
+  const triangles = Object.values(state.meshes).reduce((a, m) => a + m.count / 3, 0);
+  const pre = document.createElement("pre");
+  pre.id = "bench";
+  pre.textContent = JSON.stringify({ moves: t.length, triangles, slider_to_frame_ms: { median: t[t.length >> 1], max: t[t.length - 1] }, draw_ms: { median: d[d.length >> 1], max: d[d.length - 1] }, contexts_lost: view.contextLost || 0 });
+  document.body.appendChild(pre);
+}
+const query = new URLSearchParams(location.search);
+const benchMoves = Number(query.get("bench"));
+if (query.get("scale")) { canvas.width = Math.round(760 * Number(query.get("scale"))); canvas.height = Math.round(560 * Number(query.get("scale"))); }
+start().then(() => (benchMoves > 0 ? bench(benchMoves) : null)).catch((e) => {
+  view.error = e.message;
+  $("status").innerHTML = `<span class="bad">${e.message}</span>`;
+});
