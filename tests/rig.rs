@@ -400,3 +400,85 @@ fn an_animation_keyed_in_degrees_opens_linearly() {
         KeyError::NoAnatomy
     );
 }
+
+/// `rig sample` and `rig ik` speak degrees and mm too: each sampled pose's animator values
+/// pose the same jaw through `rig pose`, and IK started from an animator pose reports its
+/// answer in those units.
+#[test]
+fn sample_and_ik_report_degrees_and_millimetres() {
+    let f = fixture();
+    let rig = f.rig.clone().with_anatomy(&f.mandible, &f.poses.poses);
+    let t = tempfile::tempdir().unwrap();
+    let rig_path = t.path().join("rig.json");
+    rig.save(&rig_path).unwrap();
+    let run = |args: &[&str]| -> String {
+        let out = std::process::Command::new(env!("CARGO_BIN_EXE_jawtrack"))
+            .args(args)
+            .output()
+            .unwrap();
+        assert!(
+            out.status.success(),
+            "{args:?}: {}",
+            String::from_utf8_lossy(&out.stderr)
+        );
+        String::from_utf8_lossy(&out.stdout).into_owned()
+    };
+    let out = t.path().join("samples.json");
+    let rig_s = rig_path.to_str().unwrap();
+    run(&[
+        "rig",
+        "sample",
+        rig_s,
+        "-n",
+        "4",
+        "-o",
+        out.to_str().unwrap(),
+    ]);
+    let units: Vec<[f64; 3]> = serde_json::from_str(
+        &std::fs::read_to_string(out.with_extension("animator.json")).unwrap(),
+    )
+    .unwrap();
+    let params: Vec<[f64; 3]> =
+        serde_json::from_str(&std::fs::read_to_string(out.with_extension("params.json")).unwrap())
+            .unwrap();
+    assert_eq!(units.len(), 4);
+    for (u, d) in units.iter().zip(&params) {
+        let (o, l, p) = (u[0].to_string(), u[1].to_string(), u[2].to_string());
+        let posed: serde_json::Value = serde_json::from_str(&run(&[
+            "rig",
+            "pose",
+            rig_s,
+            "--opening-deg",
+            &o,
+            "--lateral-mm",
+            &l,
+            "--protrusion-mm",
+            &p,
+        ]))
+        .unwrap();
+        let want = rig.pose(d);
+        let got: jawtrack::capture::json::PoseJson =
+            serde_json::from_value(posed["pose"].clone()).unwrap();
+        let got = got.to_pose(Path::new("pose"), "pose").unwrap();
+        let moved = (got.translation - want.translation).norm();
+        assert!(moved < 0.01, "sample {u:?}: {moved} mm apart");
+    }
+
+    let ik: serde_json::Value = serde_json::from_str(&run(&[
+        "rig",
+        "ik",
+        rig_s,
+        "--point",
+        "0,-10,40",
+        "--target",
+        "0,-22,38",
+        "--from-animator",
+        "5,0,0",
+    ]))
+    .unwrap();
+    let opening = ik["animator"]["opening_deg"].as_f64().unwrap();
+    assert!(
+        opening.is_finite() && ik["valid"].as_bool().is_some(),
+        "{ik}"
+    );
+}

@@ -29,7 +29,7 @@ pub fn write_overlays(
         let Some(mask) = &masks.masks[k] else {
             continue;
         };
-        let Some(rgb) = picture(
+        let Some((rgb, _)) = picture(
             capture,
             k,
             masks.frame,
@@ -58,7 +58,8 @@ pub fn png(rgb: &image::RgbImage) -> Vec<u8> {
 }
 
 /// Camera `k`'s overlay of `frame` at the masks' resolution: its video frame (black without
-/// images/), the mask when given, the models at `poses`. `None` when the camera's mask size
+/// images/), the mask when given, the models at `poses`; with the box the models cover
+/// (x0, y0, x1, y1, exclusive; `None` when out of view). `None` when the camera's mask size
 /// is not known.
 pub fn picture(
     capture: &Capture,
@@ -67,7 +68,7 @@ pub fn picture(
     mask: Option<&LabelMask>,
     poses: &ArchPoses,
     colours: ArchColours,
-) -> Result<Option<image::RgbImage>> {
+) -> Result<Option<(image::RgbImage, Option<[u32; 4]>)>> {
     let Some(cam) = capture.cameras[k].mask_camera() else {
         return Ok(None);
     };
@@ -96,8 +97,14 @@ pub fn picture(
     let blend = |a: [u8; 3], b: [u8; 3], alpha: f32| -> [u8; 3] {
         std::array::from_fn(|i| (a[i] as f32 * (1.0 - alpha) + b[i] as f32 * alpha).round() as u8)
     };
+    let mut models: Option<[u32; 4]> = None;
     for (i, px) in rgb.pixels_mut().enumerate() {
         let mut c = px.0;
+        if classes[i] != 0 {
+            let (x, y) = (i as u32 % w, i as u32 / w);
+            let b = models.get_or_insert([x, y, x + 1, y + 1]);
+            *b = [b[0].min(x), b[1].min(y), b[2].max(x + 1), b[3].max(y + 1)];
+        }
         if let Some(mask) = mask {
             let label = mask.data[i];
             if label & (UPPER_BIT | LOWER_BIT) != 0 {
@@ -114,7 +121,7 @@ pub fn picture(
         };
         px.0 = c;
     }
-    Ok(Some(rgb))
+    Ok(Some((rgb, models)))
 }
 
 /// A class value the rasteriser passes through untouched, for the lower arch's body when the

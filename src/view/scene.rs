@@ -417,10 +417,22 @@ impl Viewer {
             .ok_or_else(|| Refused(format!("frame {frame} was not tracked")))?;
         let masks = t.capture.load_masks(frame).ok();
         let mask = masks.as_ref().and_then(|m| m.masks[k].as_ref());
-        let rgb = overlay::picture(&t.capture, k, frame, mask, &f.poses, ArchColours::Distinct)
-            .map_err(|e| Refused(e.to_string()))?
-            .ok_or_else(|| Refused(format!("{camera}: the picture's size is not known")))?;
-        Ok(overlay::png(&rgb))
+        let (rgb, models) =
+            overlay::picture(&t.capture, k, frame, mask, &f.poses, ArchColours::Distinct)
+                .map_err(|e| Refused(e.to_string()))?
+                .ok_or_else(|| Refused(format!("{camera}: the picture's size is not known")))?;
+        // The teeth fill a small part of the frame: show the region around them, at least a
+        // quarter of the frame's width, at the frame's aspect.
+        let Some([x0, y0, x1, y1]) = models else {
+            return Ok(overlay::png(&rgb));
+        };
+        let (w, h) = rgb.dimensions();
+        let cw = ((x1 - x0) * 2).max(w / 4).min(w);
+        let ch = (cw * h / w).max((y1 - y0) * 2).min(h);
+        let cx = ((x0 + x1) / 2).saturating_sub(cw / 2).min(w - cw);
+        let cy = ((y0 + y1) / 2).saturating_sub(ch / 2).min(h - ch);
+        let crop = image::imageops::crop_imm(&rgb, cx, cy, cw, ch).to_image();
+        Ok(overlay::png(&crop))
     }
 
     /// A mesh for WebGL: vertex and triangle counts (u32), positions (f32, mm), indices (u32),

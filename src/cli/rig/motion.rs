@@ -53,7 +53,8 @@ pub struct SampleArgs {
     #[arg(long, default_value_t = 0)]
     pub seed: u64,
     /// Where to write the poses (jawtrack-jaw/1); their parameters go beside it
-    /// (`.params.json`).
+    /// (`.params.json`, the network's) and, in animator units, `.animator.json`
+    /// ([opening °, lateral mm, protrusion mm] per pose).
     #[arg(short, long)]
     pub out: PathBuf,
 }
@@ -165,8 +166,18 @@ pub fn sample(a: SampleArgs) -> anyhow::Result<()> {
     jawtrack::rig::write_jaw_poses(&a.out, &frames, &poses)?;
     let side = a.out.with_extension("params.json");
     jawtrack::capture::write_json_atomic(&side, &params)?;
+    let animator: Option<Vec<[f64; 3]>> = params
+        .iter()
+        .map(|d| {
+            rig.anatomical(d)
+                .map(|u| [u.opening_deg, u.lateral_mm, u.protrusion_mm])
+        })
+        .collect();
+    if let Some(units) = &animator {
+        jawtrack::capture::write_json_atomic(&a.out.with_extension("animator.json"), units)?;
+    }
     println!(
-        "wrote {} random rig poses ({} ranges) to {} and their parameters to {}",
+        "wrote {} random rig poses ({} ranges) to {} and their parameters to {}{}",
         a.count,
         if a.fixed_ranges {
             "fixed"
@@ -174,7 +185,12 @@ pub fn sample(a: SampleArgs) -> anyhow::Result<()> {
             "d1-dependent"
         },
         a.out.display(),
-        side.display()
+        side.display(),
+        if animator.is_some() {
+            " (in degrees and mm: .animator.json)"
+        } else {
+            ""
+        }
     );
     Ok(())
 }

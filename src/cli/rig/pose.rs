@@ -69,9 +69,12 @@ pub struct IkArgs {
     /// Where the point should go, upper frame (mm): X,Y,Z.
     #[arg(long, value_parser = parse_vec3)]
     pub target: [f64; 3],
-    /// The current parameters: D1,D2,D3.
-    #[arg(long, value_parser = parse_vec3, default_value = "0,0,0")]
-    pub from: [f64; 3],
+    /// The current parameters: D1,D2,D3 (default: the rest bite).
+    #[arg(long, value_parser = parse_vec3, conflicts_with = "from_animator")]
+    pub from: Option<[f64; 3]>,
+    /// Or the current pose in animator units: OPENING_DEG,LATERAL_MM,PROTRUSION_MM.
+    #[arg(long, value_parser = parse_vec3)]
+    pub from_animator: Option<[f64; 3]>,
 }
 
 /// A pose in the animator's units (degrees; mm at the lower incisal point, from the rest bite).
@@ -81,6 +84,16 @@ struct AnimatorReport {
     incisal_opening_mm: f64,
     lateral_mm: f64,
     protrusion_mm: f64,
+}
+
+/// The pose of `d` in animator units (`None` for a rig file without its anatomy).
+fn animator_of(rig: &JawRig, d: &[f64; 3]) -> Option<AnimatorReport> {
+    rig.anatomical(d).map(|u| AnimatorReport {
+        opening_deg: u.opening_deg,
+        incisal_opening_mm: u.incisal_opening_mm,
+        lateral_mm: u.lateral_mm,
+        protrusion_mm: u.protrusion_mm,
+    })
 }
 
 #[derive(Serialize)]
@@ -120,12 +133,7 @@ pub fn pose(a: PoseArgs) -> anyhow::Result<()> {
     }
     let valid_params = rig.clamp(&d);
     let used = if a.clamp { valid_params } else { d };
-    let animator = rig.anatomical(&used).map(|u| AnimatorReport {
-        opening_deg: u.opening_deg,
-        incisal_opening_mm: u.incisal_opening_mm,
-        lateral_mm: u.lateral_mm,
-        protrusion_mm: u.protrusion_mm,
-    });
+    let animator = animator_of(&rig, &used);
     let report = PoseReport {
         params: d,
         animator,
@@ -234,6 +242,9 @@ pub fn reconstruct(a: ReconstructArgs) -> anyhow::Result<()> {
 struct IkReport {
     #[serde(flatten)]
     result: jawtrack::rig::ik::IkResult,
+    /// The solved pose in animator units (absent for rig files learned before them).
+    #[serde(skip_serializing_if = "Option::is_none")]
+    animator: Option<AnimatorReport>,
     valid: bool,
     milliseconds: f64,
     pose: jawtrack::capture::json::PoseJson,
@@ -256,16 +267,27 @@ pub fn ik(a: IkArgs) -> anyhow::Result<()> {
         }
         _ => bail!("give the point to move: --point X,Y,Z or --vertex I --mesh MESH"),
     };
+    let from = match (a.from, a.from_animator) {
+        (Some(d), _) => d,
+        (None, Some(u)) => rig.params_for(&u).with_context(|| {
+            format!(
+                "--from-animator {},{},{}: the rig reaches no such pose (or its file has no jaw frame)",
+                u[0], u[1], u[2]
+            )
+        })?,
+        (None, None) => rig.params_for(&[0.0; 3]).unwrap_or([0.0; 3]),
+    };
     let started = Instant::now();
     let result = jawtrack::rig::ik::solve(
         &rig,
         &point,
         &nalgebra::Vector3::from(a.target),
-        &a.from,
+        &from,
         &Default::default(),
     );
     let milliseconds = started.elapsed().as_secs_f64() * 1e3;
     let report = IkReport {
+        animator: animator_of(&rig, &result.params),
         valid: rig.is_valid(&result.params),
         pose: (&rig.pose(&result.params)).into(),
         result,

@@ -189,6 +189,9 @@ function draw() {
   gl.uniform3fv(uEye, state.eye);
   for (const [name, m] of Object.entries(state.meshes)) {
     const moving = name !== "upper";
+    // The mandible's crowns coincide with the lower arch's: the arch is drawn in front.
+    if (name === "mandible") { gl.enable(gl.POLYGON_OFFSET_FILL); gl.polygonOffset(2, 2); }
+    else gl.disable(gl.POLYGON_OFFSET_FILL);
     gl.uniformMatrix4fv(uModel, false, Float32Array.from(moving ? state.jaw : IDENTITY));
     gl.uniform3fv(uColour, moving && state.outOfRange ? OUT_OF_RANGE : COLOURS[name]);
     gl.bindVertexArray(m.vao);
