@@ -340,7 +340,67 @@ fn the_tracked_timeline_scrubs_with_the_overlays() {
     // Each picture is the region around the teeth, at the frame's aspect.
     for size in sizes.as_array().unwrap() {
         let (w, h) = (size[0].as_f64().unwrap(), size[1].as_f64().unwrap());
-        assert!(w >= 240.0 && w <= 960.0 && h <= 540.0, "{sizes}");
+        assert!((240.0..=960.0).contains(&w) && h <= 540.0, "{sizes}");
         assert!((w / h - 960.0 / 540.0).abs() < 0.05, "{sizes}");
+    }
+}
+
+/// The envelope rig on the same page: its sliders pose the jaw in the same units, inside
+/// Posselt's envelope (a pose beyond it comes as near as it can, then the protrusion band
+/// there is reached exactly), and a keyed animation exports as valid glTF.
+#[test]
+fn the_envelope_rig_drives_the_same_page() {
+    if !have_browser() {
+        return;
+    }
+    let f = fixture();
+    let dir = tempfile::tempdir().unwrap();
+    let envelope = dir.path().join("envelope.json");
+    ok(&[
+        "envelope",
+        "learn",
+        s(&f.capture.join("gt/poses.json")),
+        "--mesh",
+        s(&f.capture.join("meshes/mandible.obj")),
+        "-o",
+        s(&envelope),
+    ]);
+    let (_server, url) = serve(&[s(&envelope), "--capture", s(&f.capture)]);
+    let b = Browser::start();
+    b.go(&url);
+    assert_eq!(b.js("return window.view.scene.rig"), json!("envelope rig"));
+    let rest = b
+        .js("return window.view.reply.animator.opening_deg")
+        .as_f64()
+        .unwrap();
+    assert!(
+        rest.abs() < 0.05,
+        "the page opens at the rest bite: {rest}°"
+    );
+    let jaw_before = b.js("return window.view.jaw()");
+    let target = b.js_async(
+        "const r = await window.view.poseFor([12, 0, 0]);
+         const band = r.protrusion_range_mm; const mid = (band[0] + band[1]) / 2;
+         const s = await window.view.poseFor([12, 0, mid]);
+         return {valid: s.valid, reached: s.reached, opening: s.animator.opening_deg, protrusion: s.animator.protrusion_mm, mid};",
+    );
+    assert_eq!(target["reached"], json!(true), "{target}");
+    assert_eq!(target["valid"], json!(true), "{target}");
+    assert!(
+        (target["opening"].as_f64().unwrap() - 12.0).abs() < 0.01,
+        "{target}"
+    );
+    assert_ne!(b.js("return window.view.jaw()"), jaw_before);
+    b.js("document.getElementById('key-time').value = 0; document.getElementById('set-key').click();");
+    b.js_async("await window.view.poseFor([0, 0, 0]); return true;");
+    b.js("document.getElementById('key-time').value = 1; document.getElementById('set-key').click();");
+    let gltf = b.js_async("return await window.view.exportGltf();");
+    let text = gltf.as_str().unwrap();
+    assert!(!text.starts_with("error"), "{text}");
+    let path = dir.path().join("envelope.gltf");
+    std::fs::write(&path, text).unwrap();
+    if let Some(report) = common::validate_gltf(&path) {
+        assert_eq!(report["errors"], 0, "{report}");
+        assert_eq!(report["animations"], 1, "{report}");
     }
 }

@@ -6,14 +6,15 @@ use std::path::PathBuf;
 
 use anyhow::{Context, bail};
 use jawtrack::capture::Capture;
-use jawtrack::rig::JawRig;
+use jawtrack::envelope::EnvelopeRig;
+use jawtrack::rig::{JawRig, ThreeParameterRig};
 use jawtrack::view::{Meshes, Tracked, Viewer, serve};
 
 use crate::cli::args::load_mesh;
 
 #[derive(clap::Args)]
 pub struct Args {
-    /// The rig file (`rig learn`).
+    /// The rig file: `rig learn`'s, or `envelope learn`'s.
     pub rig: PathBuf,
     /// A capture: its meshes are drawn, and with --tracks its frames are on the timeline.
     #[arg(long)]
@@ -39,7 +40,14 @@ pub struct Args {
 }
 
 pub fn run(a: Args) -> anyhow::Result<()> {
-    let rig = JawRig::load(&a.rig)?;
+    // The rig file says which rig it is.
+    let head: serde_json::Value = jawtrack::capture::json::read_json(&a.rig, "rig file")?;
+    let rig: Box<dyn ThreeParameterRig> =
+        if head["format"].as_str() == Some(jawtrack::envelope::model::ENVELOPE_FORMAT) {
+            Box::new(EnvelopeRig::load(&a.rig)?)
+        } else {
+            Box::new(JawRig::load(&a.rig)?)
+        };
     let mandible = a
         .mandible
         .as_deref()

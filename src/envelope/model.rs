@@ -214,3 +214,50 @@ pub fn bijectivity(
         })
         .collect()
 }
+
+/// The unit-cube sliders as the three parameters: inside the cube is inside Posselt's
+/// envelope, the valid poses.
+impl crate::rig::ThreeParameterRig for EnvelopeRig {
+    fn kind(&self) -> &'static str {
+        "envelope rig"
+    }
+
+    fn pose(&self, d: &[f64; 3]) -> Pose {
+        self.pose_at_cube(d)
+    }
+
+    fn is_valid(&self, d: &[f64; 3]) -> bool {
+        d.iter().all(|v| (-1e-9..=1.0 + 1e-9).contains(v))
+    }
+
+    fn clamp(&self, d: &[f64; 3]) -> [f64; 3] {
+        d.map(|v| v.clamp(0.0, 1.0))
+    }
+
+    fn band(&self, _d: &[f64; 3], _k: usize) -> Option<[f64; 2]> {
+        Some([0.0, 1.0])
+    }
+
+    fn motion_frame(&self) -> Option<crate::anatomy::motion::MotionFrame> {
+        Some(crate::anatomy::motion::MotionFrame::new(
+            &self.six.frame,
+            self.six.neutral,
+        ))
+    }
+
+    fn spread(&self) -> Vec<[f64; 3]> {
+        let at = |i: usize| i as f64 / 4.0;
+        (0..125)
+            .map(|i| [at(i % 5), at(i / 5 % 5), at(i / 25)])
+            .collect()
+    }
+
+    fn rest_params(&self) -> [f64; 3] {
+        let rest = self.point_of(&self.six.neutral);
+        self.shield.cube(&rest).map(|v| v.clamp(0.0, 1.0))
+    }
+
+    fn clamp_for_search(&self, d: &[f64; 3]) -> [f64; 3] {
+        d.map(|v| v.clamp(0.0, 1.0))
+    }
+}

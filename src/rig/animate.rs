@@ -4,6 +4,7 @@
 use serde::{Deserialize, Serialize};
 
 use super::model::JawRig;
+use super::three::{ThreeParameterRig, nearest_animator};
 use crate::geometry::Pose;
 
 #[derive(Debug, Clone, Copy, Serialize, Deserialize, PartialEq)]
@@ -100,16 +101,17 @@ pub fn animate(rig: &JawRig, keys: &[Key], fps: f64) -> Result<Vec<AnimatedFrame
 }
 
 /// The same with keys in animator units (opening °, lateral mm, protrusion mm): those are
-/// interpolated, and each frame's network parameters solved for them, then clamped.
-pub fn animate_animator(
-    rig: &JawRig,
+/// interpolated, and each frame's parameters solved for them (from the previous frame's),
+/// then clamped. Any three-parameter rig.
+pub fn animate_animator<R: ThreeParameterRig + ?Sized>(
+    rig: &R,
     keys: &[Key],
     fps: f64,
 ) -> Result<Vec<AnimatedFrame>, KeyError> {
     check_keys(keys, fps)?;
-    if rig.anatomy.is_none() {
+    let Some(motion) = rig.motion_frame() else {
         return Err(KeyError::NoAnatomy);
-    }
+    };
     let (t0, t1) = (keys[0].time, keys[keys.len() - 1].time);
     let count = ((t1 - t0) * fps).floor() as u32 + 1;
     let mut previous = None;
@@ -117,18 +119,22 @@ pub fn animate_animator(
         .map(|i| {
             let time = t0 + i as f64 / fps;
             let target = params_at(keys, time);
-            let raw = match previous {
-                Some(d) => rig.params_near(&target, d),
-                None => rig.params_for(&target),
+            let start = previous.unwrap_or_else(|| rig.rest_params());
+            // A rig that poses only valid parameters (the envelope's cube) comes as near as
+            // it can: that frame is clamped. Otherwise values it cannot reach are an error.
+            let (raw, miss) =
+                nearest_animator(rig, &motion, &target, start).ok_or(KeyError::Unreachable(i))?;
+            let reached = miss < 1e-3;
+            if !reached && !rig.is_valid(&raw) {
+                return Err(KeyError::Unreachable(i));
             }
-            .ok_or(KeyError::Unreachable(i))?;
             previous = Some(raw);
             let params = rig.clamp(&raw);
             Ok(AnimatedFrame {
                 frame: i,
                 time,
                 params,
-                clamped: params != raw,
+                clamped: params != raw || !reached,
                 pose: rig.pose(&params),
             })
         })

@@ -6,7 +6,7 @@
 use nalgebra::Vector3;
 use serde::Serialize;
 
-use super::model::JawRig;
+use super::three::ThreeParameterRig;
 
 #[derive(Debug, Clone, Copy, serde::Deserialize, Serialize, PartialEq)]
 #[serde(default, deny_unknown_fields)]
@@ -42,8 +42,8 @@ pub struct IkResult {
 
 /// `point` in the lower frame (mm), `target` in the upper frame (mm), `from` the current
 /// parameters (clamped into the valid ranges first).
-pub fn solve(
-    rig: &JawRig,
+pub fn solve<R: ThreeParameterRig + ?Sized>(
+    rig: &R,
     point: &Vector3<f64>,
     target: &Vector3<f64>,
     from: &[f64; 3],

@@ -13,9 +13,11 @@ mod network;
 pub mod nlpca;
 pub mod plot;
 pub mod ranges;
+pub mod three;
 pub mod units;
 
 pub use input::{JawPoses, read_jaw_poses, write_jaw_poses};
 pub use model::{JawRig, RigError, RigSettings};
 pub use nlpca::{Nlpca, NlpcaSettings};
+pub use three::ThreeParameterRig;
 pub use units::AnimatorParams;

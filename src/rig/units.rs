@@ -6,6 +6,7 @@
 use serde::{Deserialize, Serialize};
 
 use super::JawRig;
+use super::three::{ThreeParameterRig, solve_animator};
 use crate::anatomy::JawFrame;
 use crate::anatomy::motion::{Anatomical, MotionFrame};
 use crate::capture::Mesh;
@@ -61,49 +62,51 @@ impl JawRig {
     /// the anatomy, or when the rig cannot reach them (its modes do not span that pose).
     pub fn params_for(&self, target: &AnimatorParams) -> Option<[f64; 3]> {
         let m = self.motion_frame()?;
-        self.solve(&m, target, self.encode(m.rest()))
+        solve_animator(self, &m, target, self.encode(m.rest()))
     }
 
     /// [`JawRig::params_for`] from `start` (an animation's previous frame).
     pub fn params_near(&self, target: &AnimatorParams, start: [f64; 3]) -> Option<[f64; 3]> {
         let m = self.motion_frame()?;
-        self.solve(&m, target, start)
+        solve_animator(self, &m, target, start)
+    }
+}
+
+impl ThreeParameterRig for JawRig {
+    fn kind(&self) -> &'static str {
+        "NLPCA rig"
     }
 
-    fn solve(&self, m: &MotionFrame, target: &AnimatorParams, start: [f64; 3]) -> Option<[f64; 3]> {
-        let f = |d: &[f64; 3]| -> [f64; 3] {
-            let a = m.measure(&self.pose(d));
-            [
-                a.opening_deg - target[0],
-                a.lateral_mm - target[1],
-                a.protrusion_mm - target[2],
-            ]
-        };
-        let mut d = start;
-        for _ in 0..50 {
-            let r = f(&d);
-            if r.iter().map(|v| v * v).sum::<f64>().sqrt() < 1e-6 {
-                return Some(d);
-            }
-            let h = 1e-5;
-            let mut jac = nalgebra::Matrix3::zeros();
-            for k in 0..3 {
-                let (mut a, mut b) = (d, d);
-                a[k] += h;
-                b[k] -= h;
-                let (fa, fb) = (f(&a), f(&b));
-                for i in 0..3 {
-                    jac[(i, k)] = (fa[i] - fb[i]) / (2.0 * h);
-                }
-            }
-            let step = jac.try_inverse()? * nalgebra::Vector3::from(r);
-            // Damped: a full step can leave the region the modes were fitted on.
-            let scale = (0.1 / step.norm()).min(1.0);
-            for k in 0..3 {
-                d[k] -= scale * step[k];
-            }
-        }
-        let r = f(&d);
-        (r.iter().map(|v| v * v).sum::<f64>().sqrt() < 1e-3).then_some(d)
+    fn pose(&self, d: &[f64; 3]) -> Pose {
+        JawRig::pose(self, d)
+    }
+
+    fn is_valid(&self, d: &[f64; 3]) -> bool {
+        JawRig::is_valid(self, d)
+    }
+
+    fn clamp(&self, d: &[f64; 3]) -> [f64; 3] {
+        JawRig::clamp(self, d)
+    }
+
+    fn band(&self, d: &[f64; 3], k: usize) -> Option<[f64; 2]> {
+        let (lateral, protrusion) = self.ranges.at(d[0]);
+        let intervals = if k == 1 { lateral } else { protrusion };
+        let lo = intervals.iter().map(|i| i[0]).reduce(f64::min)?;
+        let hi = intervals.iter().map(|i| i[1]).reduce(f64::max)?;
+        Some([lo, hi])
+    }
+
+    fn motion_frame(&self) -> Option<MotionFrame> {
+        JawRig::motion_frame(self)
+    }
+
+    fn spread(&self) -> Vec<[f64; 3]> {
+        self.training_params.clone()
+    }
+
+    fn rest_params(&self) -> [f64; 3] {
+        self.motion_frame()
+            .map_or([0.0; 3], |m| self.encode(m.rest()))
     }
 }

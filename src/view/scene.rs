@@ -14,8 +14,9 @@ use crate::capture::{ArchPoses, Capture, Mesh};
 use crate::error::{Error, Result};
 use crate::export::gltf::{self, Key as GltfKey, write_gltf};
 use crate::geometry::{Pose, jaw_pose};
-use crate::rig::JawRig;
+use crate::rig::ThreeParameterRig;
 use crate::rig::animate::{Key, animate_animator};
+use crate::rig::three::{nearest_animator, solve_animator};
 use crate::track::overlay::{self, ArchColours};
 
 /// The meshes the page draws: the upper arch fixed (upper frame), the lower arch and the
@@ -60,7 +61,7 @@ impl Tracked {
 
 /// The page's questions are answered here.
 pub struct Viewer {
-    rig: JawRig,
+    rig: Box<dyn ThreeParameterRig>,
     motion: MotionFrame,
     pub meshes: Meshes,
     tracked: Option<Tracked>,
@@ -160,8 +161,8 @@ pub struct AnimationQuery {
 /// What the page loads first.
 #[derive(Debug, Clone, Serialize)]
 pub struct SceneReply {
-    pub rig: String,
-    pub poses: usize,
+    /// The kind of rig ("NLPCA rig", "envelope rig").
+    pub rig: &'static str,
     pub extent: Extent,
     pub rest: PoseReply,
     pub meshes: Vec<&'static str>,
@@ -198,9 +199,9 @@ fn column_major(p: &Pose) -> [f64; 16] {
 }
 
 impl Viewer {
-    /// `rig_path` names the rig in errors. The rig must carry its anatomy (animator units).
+    /// `rig_path` names the rig in errors. The rig must carry its jaw frame (animator units).
     pub fn new(
-        rig: JawRig,
+        rig: Box<dyn ThreeParameterRig>,
         rig_path: &Path,
         meshes: Meshes,
         tracked: Option<Tracked>,
@@ -212,12 +213,11 @@ impl Viewer {
                 "the rig has no jaw frame (learned before animator units): learn it again",
             )
         })?;
-        // The rest bite exactly (encoding alone lands a few hundredths of a degree off).
-        let rest = rig
-            .params_for(&[0.0; 3])
-            .unwrap_or_else(|| rig.encode(motion.rest()));
+        // The rest bite exactly (the rig's nearest parameters land a little off).
+        let rest = solve_animator(&*rig, &motion, &[0.0; 3], rig.rest_params())
+            .unwrap_or_else(|| rig.rest_params());
         let measured: Vec<Anatomical> = rig
-            .training_params
+            .spread()
             .iter()
             .map(|d| motion.measure(&rig.pose(d)))
             .collect();
@@ -244,10 +244,9 @@ impl Viewer {
 
     fn reply(&self, params: [f64; 3], reached: bool) -> PoseReply {
         let pose = self.rig.pose(&params);
-        let (lateral, protrusion) = self.rig.ranges.at(params[0]);
-        let span = |intervals: &[[f64; 2]], k: usize, measure: fn(&Anatomical) -> f64| {
-            let lo = intervals.iter().map(|i| i[0]).reduce(f64::min)?;
-            let hi = intervals.iter().map(|i| i[1]).reduce(f64::max)?;
+        // A band's ends, parameter k moved with the others kept, measured in mm.
+        let span = |k: usize, measure: fn(&Anatomical) -> f64| {
+            let [lo, hi] = self.rig.band(&params, k)?;
             let at = |v: f64| {
                 let mut d = params;
                 d[k] = v;
@@ -261,8 +260,8 @@ impl Viewer {
             reached,
             valid: self.rig.is_valid(&params),
             animator: self.motion.measure(&pose).into(),
-            lateral_range_mm: span(&lateral, 1, |a| a.lateral_mm),
-            protrusion_range_mm: span(&protrusion, 2, |a| a.protrusion_mm),
+            lateral_range_mm: span(1, |a| a.lateral_mm),
+            protrusion_range_mm: span(2, |a| a.protrusion_mm),
             jaw: column_major(&pose),
         }
     }
@@ -276,8 +275,7 @@ impl Viewer {
             meshes.push("mandible");
         }
         SceneReply {
-            rig: self.rig.format.clone(),
-            poses: self.rig.training_params.len(),
+            rig: self.rig.kind(),
             extent: self.extent.clone(),
             rest: self.reply(self.rest, true),
             meshes,
@@ -311,10 +309,13 @@ impl Viewer {
             return Err(Refused("target: three finite numbers, |v| ≤ 1000".into()));
         }
         let from = q.from.unwrap_or(self.rest);
-        Ok(match self.rig.params_near(&q.target, from) {
-            Some(d) => self.reply(d, true),
-            None => self.reply(from, false),
-        })
+        // Where the rig cannot reach the values, the pose it comes nearest to is shown.
+        Ok(
+            match nearest_animator(&*self.rig, &self.motion, &q.target, from) {
+                Some((d, miss)) => self.reply(d, miss < 1e-3),
+                None => self.reply(from, false),
+            },
+        )
     }
 
     /// IK (Eq. 10): the valid parameters that bring the vertex closest to the target.
@@ -340,7 +341,7 @@ impl Viewer {
         let point = Vector3::new(p[0] as f64, p[1] as f64, p[2] as f64);
         let started = Instant::now();
         let r = crate::rig::ik::solve(
-            &self.rig,
+            &*self.rig,
             &point,
             &Vector3::from(q.target),
             &q.from,
@@ -364,7 +365,7 @@ impl Viewer {
             return Err(Refused("keys: at most an hour of animation".into()));
         }
         let frames =
-            animate_animator(&self.rig, &q.keys, q.fps).map_err(|e| Refused(e.to_string()))?;
+            animate_animator(&*self.rig, &q.keys, q.fps).map_err(|e| Refused(e.to_string()))?;
         let keys: Vec<GltfKey> = frames
             .iter()
             .map(|f| GltfKey {
@@ -427,8 +428,9 @@ impl Viewer {
             return Ok(overlay::png(&rgb));
         };
         let (w, h) = rgb.dimensions();
-        let cw = ((x1 - x0) * 2).max(w / 4).min(w);
-        let ch = (cw * h / w).max((y1 - y0) * 2).min(h);
+        let size = (2 * (x1 - x0)).max(2 * (y1 - y0) * w / h).max(w / 4);
+        let cw = size.min(w);
+        let ch = (cw * h / w).min(h);
         let cx = ((x0 + x1) / 2).saturating_sub(cw / 2).min(w - cw);
         let cy = ((y0 + y1) / 2).saturating_sub(ch / 2).min(h - ch);
         let crop = image::imageops::crop_imm(&rgb, cx, cy, cw, ch).to_image();

@@ -567,6 +567,7 @@ async function start() {
   setupProgram();
   const scene = await (await ask("/api/scene")).json();
   view.scene = scene;
+  $("rig-kind").textContent = `Rig: the ${scene.rig}`;
   for (const name of scene.meshes) state.meshes[name] = await loadMesh(name);
   // Look at the teeth: the centre and size of the arches.
   const all = [state.meshes.upper, state.meshes.lower].filter(Boolean);
