@@ -107,18 +107,18 @@ pub fn run(a: Args) -> anyhow::Result<()> {
         let mandible = capture.mandible.as_ref().map(|m| Part {
             name: "mandible",
             mesh: m,
-            colour: [0.85, 0.80, 0.70, 1.0],
+            colour: jawtrack::export::gltf::MANDIBLE_COLOUR,
         });
         let bytes = write_gltf(
             Some(&Part {
                 name: "upper",
                 mesh: &capture.upper,
-                colour: [0.95, 0.93, 0.88, 1.0],
+                colour: jawtrack::export::gltf::UPPER_COLOUR,
             }),
             &Part {
                 name: "lower",
                 mesh: &capture.lower,
-                colour: [0.90, 0.92, 0.95, 1.0],
+                colour: jawtrack::export::gltf::LOWER_COLOUR,
             },
             mandible.as_ref(),
             &keys,

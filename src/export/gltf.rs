@@ -25,6 +25,22 @@ pub struct Key {
     pub jaw: Pose,
 }
 
+/// The parts' colours in the files of tracked and keyed motion.
+pub const UPPER_COLOUR: [f32; 4] = [0.95, 0.93, 0.88, 1.0];
+pub const LOWER_COLOUR: [f32; 4] = [0.90, 0.92, 0.95, 1.0];
+pub const MANDIBLE_COLOUR: [f32; 4] = [0.85, 0.80, 0.70, 1.0];
+
+/// The keys of an animation played at `fps`: frame i at i / fps seconds.
+pub fn keys_of(frames: &[crate::rig::animate::AnimatedFrame], fps: f64) -> Vec<Key> {
+    frames
+        .iter()
+        .map(|f| Key {
+            time_s: (f.frame as f64 / fps) as f32,
+            jaw: f.pose,
+        })
+        .collect()
+}
+
 const MM: f32 = 0.001;
 
 /// The bytes and accessors being built.

@@ -12,7 +12,7 @@ use crate::anatomy::motion::{Anatomical, MotionFrame};
 use crate::capture::json::{Status, TracksJson};
 use crate::capture::{ArchPoses, Capture, Mesh};
 use crate::error::{Error, Result};
-use crate::export::gltf::{self, Key as GltfKey, write_gltf};
+use crate::export::gltf::{self, write_gltf};
 use crate::geometry::{Pose, jaw_pose};
 use crate::rig::ThreeParameterRig;
 use crate::rig::animate::{Key, animate_animator};
@@ -366,28 +366,22 @@ impl Viewer {
         }
         let frames =
             animate_animator(&*self.rig, &q.keys, q.fps).map_err(|e| Refused(e.to_string()))?;
-        let keys: Vec<GltfKey> = frames
-            .iter()
-            .map(|f| GltfKey {
-                time_s: (f.frame as f64 / q.fps) as f32,
-                jaw: f.pose,
-            })
-            .collect();
+        let keys = gltf::keys_of(&frames, q.fps);
         let m = &self.meshes;
         let upper = m.upper.as_ref().map(|u| gltf::Part {
             name: "upper",
             mesh: u,
-            colour: [0.95, 0.93, 0.88, 1.0],
+            colour: gltf::UPPER_COLOUR,
         });
         let mandible = m.mandible.as_ref().map(|u| gltf::Part {
             name: "mandible",
             mesh: u,
-            colour: [0.85, 0.80, 0.70, 1.0],
+            colour: gltf::MANDIBLE_COLOUR,
         });
         let lower = gltf::Part {
             name: "lower",
             mesh: &m.lower,
-            colour: [0.90, 0.92, 0.95, 1.0],
+            colour: gltf::LOWER_COLOUR,
         };
         Ok(write_gltf(
             upper.as_ref(),

@@ -107,16 +107,10 @@ pub fn animate(a: AnimateArgs) -> anyhow::Result<()> {
         }
     }
     if let (Some(out), Some(mesh)) = (&a.gltf, &a.mesh) {
-        use jawtrack::export::gltf::{Key as GltfKey, Part, write_gltf};
+        use jawtrack::export::gltf::{Part, keys_of, write_gltf};
         let (lower, _) = load_mesh(mesh)?;
         let upper = a.upper.as_deref().map(load_mesh).transpose()?;
-        let keys: Vec<GltfKey> = frames
-            .iter()
-            .map(|f| GltfKey {
-                time_s: (f.frame as f64 / a.fps) as f32,
-                jaw: f.pose,
-            })
-            .collect();
+        let keys = keys_of(&frames, a.fps);
         let part = |name, mesh| Part {
             name,
             mesh,
