@@ -102,19 +102,18 @@ pub fn run(a: Args) -> anyhow::Result<()> {
     let metric =
         jawtrack::anatomy::MeshMetric::new(reopened.mandible.as_ref().unwrap_or(&reopened.lower));
     let rig = super::run::with_spinner("learning the rig", || {
-        jawtrack::rig::JawRig::learn(&poses.poses, &metric, &Default::default())
+        jawtrack::rig::JawRig::learn(&poses.poses, &metric, &Default::default(), &|_| {})
     })?;
     rig.save(&rig_path)?;
     let report = jawtrack::rig::eval::report(&rig, &poses.poses, &metric, 0, 0, false)?;
     let rec = &report.reconstruction;
     println!(
-        "{} poses, learned in {:.2} s; reconstruction error on the mandible (largest vertex distance, mm): rig mean {:.3}, max {:.3}; PCA-3 mean {:.3}; NLPCA-5 mean {:.3}",
+        "{} poses, learned in {:.2} s; reconstruction error on the mandible (largest vertex distance, mm): rig mean {:.3}, max {:.3}; PCA-3 mean {:.3}",
         poses.len(),
         rig.training.seconds,
         rec.rig.stats.mean,
         rec.rig.stats.max,
         rec.pca[2].stats.mean,
-        rec.nlpca[4].stats.mean
     );
     if let Some(mandible) = &reopened.mandible {
         let frame = jawtrack::envelope::JawFrame::from_mesh(mandible, None, None)?;

@@ -213,7 +213,10 @@ pub fn rig_eval(r: &EvalReport) {
         .map(|s| s.name.as_str())
         .collect();
     names.extend(
-        [&rec.pca3_plain, &rec.rig, &rec.rig_clamped, &rec.paper_rig].map(|s| s.name.as_str()),
+        [&rec.pca3_plain, &rec.rig, &rec.rig_clamped]
+            .into_iter()
+            .chain(&rec.paper_rig)
+            .map(|s| s.name.as_str()),
     );
     if let Some(s) = &r.sampled {
         names.extend([
@@ -243,7 +246,7 @@ pub fn rig_eval(r: &EvalReport) {
     rec.nlpca.iter().for_each(row);
     row(&rec.rig);
     row(&rec.rig_clamped);
-    row(&rec.paper_rig);
+    rec.paper_rig.iter().for_each(row);
     println!(
         "{:.1}% of the poses encode inside the valid ranges; encoding {:.3} ms a pose, decoding {:.2} µs",
         100.0 * rec.valid_share,
@@ -265,11 +268,11 @@ pub fn rig_compare(poses: usize, vertices: usize, rows: &[jawtrack::envelope::co
         "{poses} poses; errors on a mesh of {vertices} vertices (mm): largest vertex distance per pose, and the front-weighted mean distance"
     );
     println!(
-        "rig                           params   max: mean      p95      max   front-weighted: mean      max   learn (s)"
+        "rig                                 params   max: mean      p95      max   front-weighted: mean      max   learn (s)"
     );
     for r in rows {
         println!(
-            "{:<30} {:>5} {:>10.3} {:>8.3} {:>8.3} {:>22.3} {:>8.3} {:>11.2}",
+            "{:<36} {:>5} {:>10.3} {:>8.3} {:>8.3} {:>22.3} {:>8.3} {:>11.2}",
             r.name,
             r.parameters,
             r.max_vertex_mm.mean,

@@ -82,8 +82,14 @@ pub fn track(capture: &Capture, options: SessionOptions) -> anyhow::Result<Summa
 }
 
 /// Run `step` with a spinner and the elapsed time on stderr: for long steps that cannot say how
-/// far they are (learning a rig).
+/// far they are.
 pub fn with_spinner<T>(what: &str, step: impl FnOnce() -> T) -> T {
+    with_progress(what, |_| step())
+}
+
+/// Run `step` with a spinner, the elapsed time and what `step` last told its progress callback
+/// (learning a rig: the stage, the evaluations so far and the error).
+pub fn with_progress<T>(what: &str, step: impl FnOnce(&jawtrack::rig::Progress) -> T) -> T {
     let bar = indicatif::ProgressBar::new_spinner();
     bar.set_style(
         indicatif::ProgressStyle::with_template("{spinner} {msg} ({elapsed})")
@@ -91,7 +97,7 @@ pub fn with_spinner<T>(what: &str, step: impl FnOnce() -> T) -> T {
     );
     bar.set_message(what.to_string());
     bar.enable_steady_tick(std::time::Duration::from_millis(200));
-    let out = step();
+    let out = step(&|m: &str| bar.set_message(format!("{what}: {m}")));
     bar.finish_and_clear();
     out
 }

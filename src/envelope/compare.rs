@@ -13,6 +13,7 @@ use super::traditional::{Dofs, TraditionalRig};
 use crate::anatomy::jaw_frame::JawFrame;
 use crate::anatomy::{Coordinates, MeshMetric, Pca};
 use crate::geometry::Pose;
+use crate::rig::model::RigModel;
 use crate::rig::{JawRig, RigError, RigSettings};
 use crate::stats::Stats;
 
@@ -126,18 +127,21 @@ pub fn compare(
     rows.push(row("PCA-3", 3, s, poses, metric, &weights, |_, p| {
         coords.pose(&pca.reconstruct(&coords.vector(p), 3))
     }));
-    let t = Instant::now();
-    let rig = JawRig::learn(poses, metric, &RigSettings::default())?;
-    let s = t.elapsed().as_secs_f64();
-    rows.push(row(
-        "NLPCA rig (Yang et al.)",
-        3,
-        s,
-        poses,
-        metric,
-        &weights,
-        |_, p| rig.pose(&rig.encode(p)),
-    ));
+    for (name, model) in [
+        ("NLPCA rig, additive (Yang et al.)", RigModel::Additive),
+        ("NLPCA rig, coupled modes", RigModel::Coupled),
+    ] {
+        let t = Instant::now();
+        let settings = RigSettings {
+            model,
+            ..Default::default()
+        };
+        let rig = JawRig::learn(poses, metric, &settings, &|_| {})?;
+        let s = t.elapsed().as_secs_f64();
+        rows.push(row(name, 3, s, poses, metric, &weights, |_, p| {
+            rig.pose(&rig.encode(p))
+        }));
+    }
     let t = Instant::now();
     let env = EnvelopeRig::learn(poses, frame, metric)?;
     let s = t.elapsed().as_secs_f64();

@@ -14,6 +14,8 @@ use rand::{RngExt, SeedableRng};
 use rand_chacha::ChaCha8Rng;
 use serde::{Deserialize, Serialize};
 
+use super::Progress;
+
 pub const MODES: usize = 3;
 
 /// One mode: d ↦ W4·tanh(W3·d + b3).
@@ -140,23 +142,23 @@ pub struct AdditiveReport {
 /// Layout of the optimised vector: per mode W3 (h), b3 (h), W4 (dims·h); the bias (dims);
 /// then the parameters of every sample (n·3).
 #[derive(Clone, Copy)]
-struct Layout {
-    dims: usize,
-    h: usize,
-    n: usize,
+pub(super) struct Layout {
+    pub dims: usize,
+    pub h: usize,
+    pub n: usize,
 }
 
 impl Layout {
     fn mode_len(&self) -> usize {
         self.h * (2 + self.dims)
     }
-    fn bias_at(&self) -> usize {
+    pub(super) fn bias_at(&self) -> usize {
         MODES * self.mode_len()
     }
-    fn params_at(&self) -> usize {
+    pub(super) fn params_at(&self) -> usize {
         self.bias_at() + self.dims
     }
-    fn len(&self) -> usize {
+    pub(super) fn len(&self) -> usize {
         self.params_at() + self.n * MODES
     }
     fn is_weight(&self, i: usize) -> bool {
@@ -165,7 +167,14 @@ impl Layout {
             r < self.h || r >= 2 * self.h
         }
     }
-    fn unpack(&self, theta: &[f64]) -> AdditiveModes {
+    /// Every sample's parameters.
+    pub(super) fn params(&self, theta: &[f64]) -> Vec<[f64; MODES]> {
+        (0..self.n)
+            .map(|n| std::array::from_fn(|k| theta[self.params_at() + n * MODES + k]))
+            .collect()
+    }
+
+    pub(super) fn unpack(&self, theta: &[f64]) -> AdditiveModes {
         let modes = (0..MODES)
             .map(|k| {
                 let m = &theta[k * self.mode_len()..(k + 1) * self.mode_len()];
@@ -185,57 +194,112 @@ impl Layout {
     }
 }
 
-fn error_and_gradient(l: Layout, theta: &[f64], data: &[f64], decay: f64) -> (f64, Vec<f64>) {
-    let variance: f64 = data.iter().map(|v| v * v).sum::<f64>().max(1e-300);
-    let norm = 1.0 / variance;
-    let mut g = vec![0.0; theta.len()];
-    let mut err = 0.0;
-    let ml = l.mode_len();
-    let mut a = vec![0.0; MODES * l.h];
-    let mut e = vec![0.0; l.dims];
-    for (n, x) in data.chunks_exact(l.dims).enumerate() {
-        let d = &theta[l.params_at() + n * MODES..l.params_at() + (n + 1) * MODES];
-        e.copy_from_slice(&theta[l.bias_at()..l.params_at()]);
+impl Layout {
+    /// x̂ for sample `n` into `e` (bias plus every mode), keeping the modes' hidden activations
+    /// in `a` (`MODES × h`) for [`Layout::backward`].
+    pub(super) fn forward(&self, theta: &[f64], n: usize, e: &mut [f64], a: &mut [f64]) {
+        let ml = self.mode_len();
+        let d = &theta[self.params_at() + n * MODES..self.params_at() + (n + 1) * MODES];
+        e.copy_from_slice(&theta[self.bias_at()..self.params_at()]);
         for k in 0..MODES {
             let m = &theta[k * ml..(k + 1) * ml];
-            for j in 0..l.h {
-                let aj = (m[j] * d[k] + m[l.h + j]).tanh();
-                a[k * l.h + j] = aj;
-                for q in 0..l.dims {
-                    e[q] += m[2 * l.h + q * l.h + j] * aj;
+            for j in 0..self.h {
+                let aj = (m[j] * d[k] + m[self.h + j]).tanh();
+                a[k * self.h + j] = aj;
+                for q in 0..self.dims {
+                    e[q] += m[2 * self.h + q * self.h + j] * aj;
                 }
             }
         }
-        for q in 0..l.dims {
-            e[q] -= x[q];
-            err += e[q] * e[q] * norm;
-            g[l.bias_at() + q] += 2.0 * norm * e[q];
+    }
+
+    /// Add to `g` the gradient of sample `n`'s error, given ∂error/∂x̂ = `dy` and the
+    /// activations of [`Layout::forward`].
+    pub(super) fn backward(&self, theta: &[f64], n: usize, dy: &[f64], a: &[f64], g: &mut [f64]) {
+        let ml = self.mode_len();
+        let d = &theta[self.params_at() + n * MODES..self.params_at() + (n + 1) * MODES];
+        for q in 0..self.dims {
+            g[self.bias_at() + q] += dy[q];
         }
         for k in 0..MODES {
             let m = &theta[k * ml..(k + 1) * ml];
             let mut gd = 0.0;
-            for j in 0..l.h {
-                let aj = a[k * l.h + j];
+            for j in 0..self.h {
+                let aj = a[k * self.h + j];
                 let mut da = 0.0;
-                for q in 0..l.dims {
-                    let dy = 2.0 * norm * e[q];
-                    g[k * ml + 2 * l.h + q * l.h + j] += dy * aj;
-                    da += m[2 * l.h + q * l.h + j] * dy;
+                for q in 0..self.dims {
+                    g[k * ml + 2 * self.h + q * self.h + j] += dy[q] * aj;
+                    da += m[2 * self.h + q * self.h + j] * dy[q];
                 }
                 let dz = da * (1.0 - aj * aj);
                 g[k * ml + j] += dz * d[k];
-                g[k * ml + l.h + j] += dz;
+                g[k * ml + self.h + j] += dz;
                 gd += dz * m[j];
             }
-            g[l.params_at() + n * MODES + k] += gd;
+            g[self.params_at() + n * MODES + k] += gd;
         }
     }
-    let count = (0..l.bias_at()).filter(|&i| l.is_weight(i)).count().max(1) as f64;
-    for i in 0..l.bias_at() {
-        if l.is_weight(i) {
-            err += decay * theta[i] * theta[i] / count;
-            g[i] += 2.0 * decay * theta[i] / count;
+
+    /// Add the weight decay ν · mean(w²) over the modes' weights to `err` and `g`.
+    pub(super) fn decay(&self, theta: &[f64], decay: f64, err: &mut f64, g: &mut [f64]) {
+        let count = (0..self.bias_at())
+            .filter(|&i| self.is_weight(i))
+            .count()
+            .max(1) as f64;
+        for i in 0..self.bias_at() {
+            if self.is_weight(i) {
+                *err += decay * theta[i] * theta[i] / count;
+                g[i] += 2.0 * decay * theta[i] / count;
+            }
         }
+    }
+}
+
+fn error_and_gradient(l: Layout, theta: &[f64], data: &[f64], decay: f64) -> (f64, Vec<f64>) {
+    let variance: f64 = data.iter().map(|v| v * v).sum::<f64>().max(1e-300);
+    let norm = 1.0 / variance;
+    let (mut err, mut g) = over_samples(l.n, theta.len(), |samples, err, g| {
+        let mut a = vec![0.0; MODES * l.h];
+        let mut e = vec![0.0; l.dims];
+        for n in samples {
+            let x = &data[n * l.dims..(n + 1) * l.dims];
+            l.forward(theta, n, &mut e, &mut a);
+            for q in 0..l.dims {
+                e[q] -= x[q];
+                *err += e[q] * e[q] * norm;
+                e[q] *= 2.0 * norm;
+            }
+            l.backward(theta, n, &e, &a, g);
+        }
+    });
+    l.decay(theta, decay, &mut err, &mut g);
+    (err, g)
+}
+
+/// The error and gradient summed over `n` samples, in parallel blocks: `add(samples, err, g)`
+/// adds the block's share to `err` and `g` (of `len` values).
+pub(super) fn over_samples(
+    n: usize,
+    len: usize,
+    add: impl Fn(std::ops::Range<usize>, &mut f64, &mut [f64]) + Sync,
+) -> (f64, Vec<f64>) {
+    use rayon::prelude::*;
+    // Blocks big enough that a thread's work outweighs adding one more gradient vector.
+    const BLOCK: usize = 128;
+    // Collected in order and summed in order, so the result does not depend on how the
+    // threads shared the blocks: training stays deterministic.
+    let blocks: Vec<(f64, Vec<f64>)> = (0..n.div_ceil(BLOCK))
+        .into_par_iter()
+        .map(|b| {
+            let (mut err, mut g) = (0.0, vec![0.0; len]);
+            add(b * BLOCK..((b + 1) * BLOCK).min(n), &mut err, &mut g);
+            (err, g)
+        })
+        .collect();
+    let (mut err, mut g) = (0.0, vec![0.0; len]);
+    for (e, gb) in blocks {
+        err += e;
+        g.iter_mut().zip(&gb).for_each(|(a, b)| *a += b);
     }
     (err, g)
 }
@@ -247,7 +311,20 @@ pub fn fit(
     dims: usize,
     directions: &[Vec<f64>; MODES],
     settings: &AdditiveSettings,
+    progress: &Progress,
 ) -> (AdditiveModes, Vec<[f64; MODES]>, AdditiveReport) {
+    let (l, theta, report) = fit_vector(data, dims, directions, settings, progress);
+    (l.unpack(&theta), l.params(&theta), report)
+}
+
+/// [`fit`], returning the optimised vector and its layout (the coupled fit goes on from it).
+pub(super) fn fit_vector(
+    data: &[f64],
+    dims: usize,
+    directions: &[Vec<f64>; MODES],
+    settings: &AdditiveSettings,
+    progress: &Progress,
+) -> (Layout, Vec<f64>, AdditiveReport) {
     const GAIN: f64 = 3.0;
     let started = std::time::Instant::now();
     let h = settings.hidden.max(1);
@@ -279,19 +356,37 @@ pub fn fit(
     }
     let unexplained_of = |t: &[f64]| error_and_gradient(l, t, data, 0.0).0;
     let unexplained_initial = unexplained_of(&theta);
-    let f = |t: &[f64]| error_and_gradient(l, t, data, settings.weight_decay);
+    let f = reporting(
+        |t: &[f64]| error_and_gradient(l, t, data, settings.weight_decay),
+        "the three modes",
+        progress,
+    );
     let (theta, _, iterations) =
         super::lbfgs::minimise(&f, theta, settings.max_iterations, settings.memory);
-    let params = (0..l.n)
-        .map(|n| std::array::from_fn(|k| theta[l.params_at() + n * MODES + k]))
-        .collect();
     let report = AdditiveReport {
         iterations,
         unexplained_initial,
         unexplained: unexplained_of(&theta),
         seconds: started.elapsed().as_secs_f64(),
     };
-    (l.unpack(&theta), params, report)
+    (l, theta, report)
+}
+
+/// `f`, telling `progress` every so many evaluations how far the fit of `what` is.
+pub(super) fn reporting<'a>(
+    f: impl Fn(&[f64]) -> (f64, Vec<f64>) + Sync + 'a,
+    what: &'a str,
+    progress: &'a Progress,
+) -> impl Fn(&[f64]) -> (f64, Vec<f64>) + Sync + 'a {
+    let count = std::sync::atomic::AtomicU64::new(0);
+    move |t| {
+        let (e, g) = f(t);
+        let n = count.fetch_add(1, std::sync::atomic::Ordering::Relaxed) + 1;
+        if n.is_multiple_of(50) {
+            progress(&format!("{what}: {n} evaluations, error {e:.3e}"));
+        }
+        (e, g)
+    }
 }
 
 #[cfg(test)]
@@ -344,7 +439,7 @@ mod tests {
             vec![0.0, 0.0, 1.0, 0.0],
             vec![0.0, 0.0, 0.0, 1.0],
         ];
-        let (modes, params, report) = fit(&data, 4, &dirs, &AdditiveSettings::default());
+        let (modes, params, report) = fit(&data, 4, &dirs, &AdditiveSettings::default(), &|_| {});
         assert!(report.unexplained_initial > 0.02, "{report:?}");
         assert!(
             report.unexplained < 0.1 * report.unexplained_initial,

@@ -45,15 +45,16 @@ pub struct Reconstruction {
     /// PCA with 3 components on the paper's plain se(3) vectors (log of the pose in the
     /// scan's frame, radians and millimetres mixed), for comparison with [`Coordinates`].
     pub pca3_plain: Series,
-    /// NLPCA with 1..5 components (the rig's network), and 6 when a six-component network
-    /// is given.
+    /// NLPCA with 1..5 components (the paper's network, where the rig has it), and 6 when a
+    /// six-component network is given.
     pub nlpca: Vec<Series>,
     /// The three-parameter rig: encode, decode.
     pub rig: Series,
     /// Encode, clamp to the valid ranges, decode (what `rig reconstruct` writes).
     pub rig_clamped: Series,
-    /// The paper's construction (Φ2, Φ3 from D23, D45; extraction functions).
-    pub paper_rig: Series,
+    /// The paper's construction (Φ2, Φ3 from D23, D45; extraction functions), where the rig
+    /// has its networks.
+    pub paper_rig: Option<Series>,
     /// Share of the poses whose parameters are inside the valid ranges.
     pub valid_share: f64,
 }
@@ -102,8 +103,10 @@ pub fn reconstruction(
             }),
         )
     };
-    let mut nlpca: Vec<Series> = (1..=rig.network.components)
-        .map(|k| by_network(&rig.network, k))
+    let mut nlpca: Vec<Series> = rig
+        .network
+        .iter()
+        .flat_map(|net| (1..=net.components).map(|k| by_network(net, k)))
         .collect();
     if let Some(net) = nlpca6 {
         nlpca.push(by_network(net, net.components));
@@ -124,12 +127,20 @@ pub fn reconstruction(
         pca,
         pca3_plain,
         nlpca,
-        rig: Series::new("rig", rebuilt(false)),
-        rig_clamped: Series::new("rig, clamped", rebuilt(true)),
-        paper_rig: Series::new(
-            "paper's D23/D45",
-            errors(poses, metric, |p| rig.paper_pose(&rig.paper_extract(p))),
+        rig: Series::new(format!("rig ({})", rig.model_name()), rebuilt(false)),
+        rig_clamped: Series::new(
+            format!("rig ({}), clamped", rig.model_name()),
+            rebuilt(true),
         ),
+        paper_rig: rig.paper.is_some().then(|| {
+            Series::new(
+                "paper's D23/D45",
+                poses
+                    .par_iter()
+                    .filter_map(|p| Some(metric.max_distance(p, &rig.paper_reconstruct(p)?)))
+                    .collect(),
+            )
+        }),
         valid_share: valid as f64 / poses.len().max(1) as f64,
     }
 }

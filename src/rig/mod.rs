@@ -4,6 +4,7 @@
 
 pub mod additive;
 pub mod animate;
+pub mod coupled;
 pub mod eval;
 pub mod ik;
 pub mod input;
@@ -21,3 +22,6 @@ pub use model::{JawRig, RigError, RigSettings};
 pub use nlpca::{Nlpca, NlpcaSettings};
 pub use three::ThreeParameterRig;
 pub use units::AnimatorParams;
+
+/// Told, now and then, how far a long step (learning a rig) is.
+pub type Progress<'a> = dyn Fn(&str) + Sync + 'a;

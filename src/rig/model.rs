@@ -22,7 +22,9 @@ use std::path::Path;
 use nalgebra::{Vector3, Vector6};
 use serde::{Deserialize, Serialize};
 
+use super::Progress;
 use super::additive::{self, AdditiveModes, AdditiveReport, AdditiveSettings};
+use super::coupled::{self, CouplingSettings, Couplings};
 use super::nlpca::{Nlpca, NlpcaError, NlpcaSettings, TrainReport};
 use super::ranges::{RangeError, Ranges};
 use crate::anatomy::Coordinates;
@@ -41,15 +43,33 @@ pub const RIG_FORMAT: &str = "jawtrack-rig/1";
 /// protrusion (the paper's finding; its sixth adds only noise).
 pub const NETWORK_COMPONENTS: usize = 5;
 
+/// Which three-parameter model the rig is.
+#[derive(Debug, Clone, Copy, Serialize, Deserialize, PartialEq, Eq, Default)]
+#[serde(rename_all = "lowercase")]
+pub enum RigModel {
+    /// The modes and their pairwise couplings (coupled.rs): each parameter alone still moves
+    /// the jaw along its own mode.
+    #[default]
+    Coupled,
+    /// The paper's sum of the three modes (Eq. 5).
+    Additive,
+}
+
 #[derive(Debug, Clone, Serialize, Deserialize, PartialEq)]
 #[serde(default, deny_unknown_fields)]
 pub struct RigSettings {
+    pub model: RigModel,
+    /// Also learn the paper's five-component NLPCA and its D23/D45 construction: for the
+    /// figures (`rig eval`, `bench rig`); the rig itself does not need them.
+    pub paper: bool,
     /// The five-component network.
     pub network: NlpcaSettings,
     /// The one-component networks of the paper's D23 and D45.
     pub mode: NlpcaSettings,
     /// The rig's three modes, fitted together.
     pub modes: AdditiveSettings,
+    /// Their couplings (the coupled model).
+    pub couplings: CouplingSettings,
     /// Alpha radius of the range shapes, in parameter units (the paper: 0.12).
     pub alpha: f64,
     /// Gauss-Newton steps when encoding a pose (0: the extraction functions alone).
@@ -59,6 +79,8 @@ pub struct RigSettings {
 impl Default for RigSettings {
     fn default() -> Self {
         RigSettings {
+            model: RigModel::default(),
+            paper: false,
             network: NlpcaSettings {
                 hidden: 16,
                 max_iterations: 6000,
@@ -70,6 +92,7 @@ impl Default for RigSettings {
                 ..Default::default()
             },
             modes: AdditiveSettings::default(),
+            couplings: CouplingSettings::default(),
             alpha: 0.12,
             encode_steps: 8,
         }
@@ -83,6 +106,7 @@ impl RigSettings {
         self.network.validate(&rules.within("network"))?;
         self.mode.validate(&rules.within("mode"))?;
         self.modes.validate(&rules.within("modes"))?;
+        self.couplings.validate(&rules.within("couplings"))?;
         rules.above("alpha", self.alpha, 0.0, 100.0)?;
         rules.count("encode_steps", self.encode_steps as u64, 0, 1000)?;
         Ok(())
@@ -98,6 +122,8 @@ pub enum RigError {
         stage: &'static str,
         error: NlpcaError,
     },
+    #[error("the jaw poses do not move: every pose is the same")]
+    NoMotion,
     // Not a `#[source]`: the message already says it, and anyhow would print it twice.
     #[error("valid ranges: {0}")]
     Ranges(RangeError),
@@ -114,10 +140,50 @@ impl From<RangeError> for RigError {
 pub struct Training {
     pub poses: usize,
     pub seconds: f64,
-    pub network: TrainReport,
-    pub lateral: TrainReport,
-    pub protrusion: TrainReport,
+    /// The paper's networks, where they were learned.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub network: Option<TrainReport>,
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub lateral: Option<TrainReport>,
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub protrusion: Option<TrainReport>,
     pub modes: AdditiveReport,
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub couplings: Option<AdditiveReport>,
+}
+
+/// The rig's input scaling: `x_n = (x − mean) · scale` takes the jaw vectors to the units the
+/// modes work in (the widest coordinate with a standard deviation of 0.1, as Scholz's NLPCA).
+#[derive(Debug, Clone, Default, Serialize, Deserialize, PartialEq)]
+pub struct InputScaling {
+    pub mean: [f64; 6],
+    pub scale: f64,
+}
+
+impl InputScaling {
+    const STD: f64 = 0.1;
+
+    fn of(samples: &[Vec<f64>]) -> Result<InputScaling, RigError> {
+        let n = samples.len().max(1) as f64;
+        let mean: [f64; 6] = std::array::from_fn(|q| samples.iter().map(|s| s[q]).sum::<f64>() / n);
+        let max_std = (0..6)
+            .map(|q| {
+                (samples
+                    .iter()
+                    .map(|s| (s[q] - mean[q]).powi(2))
+                    .sum::<f64>()
+                    / n)
+                    .sqrt()
+            })
+            .fold(0.0, f64::max);
+        if max_std.is_nan() || max_std <= 1e-12 {
+            return Err(RigError::NoMotion);
+        }
+        Ok(InputScaling {
+            mean,
+            scale: Self::STD / max_std,
+        })
+    }
 }
 
 /// The paper's construction of Φ2 and Φ3 (one-component NLPCAs of D23 and D45), kept for
@@ -138,12 +204,20 @@ pub struct JawRig {
     pub coords: Coordinates,
     /// Linear PCA of the same vectors, for comparison and its singular values.
     pub pca: Pca,
-    /// The five-component hierarchical NLPCA (its input scaling is the rig's).
-    pub network: Nlpca,
-    pub paper: PaperModes,
-    /// The rig: Φ(d) = mean + (Σ_i g_i(d_i / gain_i) + bias) / scale, in the network's
-    /// normalised units.
+    /// The five-component hierarchical NLPCA and the paper's D23/D45 construction, where they
+    /// were learned (`paper` in the settings): for the figures.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub network: Option<Nlpca>,
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub paper: Option<PaperModes>,
+    /// Absent in rig files written before it: then the network's (the same scaling).
+    #[serde(default)]
+    pub input: InputScaling,
+    /// The rig: Φ(d) = mean + (Σ_i g_i(r_i) + Σ_{i<j} G_ij(r_i, r_j) + bias) / scale with
+    /// r_i = d_i / gain_i, in normalised units; the couplings G only in the coupled model.
     pub modes: AdditiveModes,
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub couplings: Option<Couplings>,
     /// d_i = gain_i · (the mode's own parameter): sign and arc-length scale.
     pub gain: [f64; 3],
     /// The parameters of the training poses (encoding starts from the nearest one).
@@ -195,10 +269,12 @@ fn speed_of(f: impl Fn(f64) -> Vec<f64>, c: f64) -> f64 {
 }
 
 impl JawRig {
+    /// Learn the rig from `poses`, telling `progress` how far it is.
     pub fn learn(
         poses: &[Pose],
         metric: &MeshMetric,
         settings: &RigSettings,
+        progress: &Progress,
     ) -> Result<JawRig, RigError> {
         let started = std::time::Instant::now();
         if poses.len() < MIN_POSES {
@@ -211,37 +287,10 @@ impl JawRig {
         let vectors: Vec<Vector6<f64>> = poses.iter().map(|p| coords.vector(p)).collect();
         let pca = Pca::fit(&vectors);
         let samples: Vec<Vec<f64>> = vectors.iter().map(|v| v.as_slice().to_vec()).collect();
-        let nl = |stage| move |error| RigError::Nlpca { stage, error };
-        let (network, network_report) =
-            Nlpca::train(&samples, NETWORK_COMPONENTS, &settings.network)
-                .map_err(nl("five-component"))?;
+        let input = InputScaling::of(&samples)?;
 
-        // The paper's D23 and D45, each reduced to one dimension.
-        let codes: Vec<Vec<f64>> = samples.iter().map(|s| network.extract(s)).collect();
-        let part = |keep: [usize; 2]| -> Vec<Vec<f64>> {
-            codes
-                .iter()
-                .map(|c| {
-                    let mut z = vec![0.0; NETWORK_COMPONENTS];
-                    for k in keep {
-                        z[k] = c[k];
-                    }
-                    network.generate(&z)
-                })
-                .collect()
-        };
-        let (lateral, lateral_report) =
-            Nlpca::train(&part([1, 2]), 1, &settings.mode).map_err(nl("lateral (D23)"))?;
-        let (protrusion, protrusion_report) =
-            Nlpca::train(&part([3, 4]), 1, &settings.mode).map_err(nl("protrusion (D45)"))?;
-        let base = network.generate(&[0.0; NETWORK_COMPONENTS]);
-        let paper = PaperModes {
-            lateral,
-            protrusion,
-            base: std::array::from_fn(|k| base[k]),
-        };
-
-        // The rig's modes, fitted as one additive model in the network's normalised units.
+        // The rig's modes, fitted in normalised units: their sum, then (coupled) their
+        // couplings from it.
         let front = metric
             .probes()
             .iter()
@@ -254,25 +303,49 @@ impl JawRig {
             .iter()
             .flat_map(|s| {
                 s.iter()
-                    .zip(&network.mean)
-                    .map(|(v, m)| (v - m) * network.scale)
+                    .zip(&input.mean)
+                    .map(|(v, m)| (v - m) * input.scale)
             })
             .collect();
-        let (modes, raw, modes_report) =
-            additive::fit(&normalised, 6, &directions, &settings.modes);
+        let (base, theta, modes_report) =
+            additive::fit_vector(&normalised, 6, &directions, &settings.modes, progress);
+        let (modes, couplings, raw, couplings_report) = match settings.model {
+            RigModel::Additive => (base.unpack(&theta), None, base.params(&theta), None),
+            RigModel::Coupled => {
+                let (m, c, raw, report) = coupled::fit(
+                    &normalised,
+                    base,
+                    theta,
+                    &settings.couplings,
+                    settings.modes.seed,
+                    progress,
+                );
+                (m, Some(c), raw, Some(report))
+            }
+        };
         let gain = gains(&raw, &moved, |k, c| speed_of(|c| modes.mode(k, c), c));
         let training_params: Vec<[f64; 3]> = raw
             .iter()
             .map(|r| std::array::from_fn(|k| r[k] * gain[k]))
             .collect();
         let ranges = Ranges::build(&training_params, settings.alpha)?;
+        let (network, paper, reports) = if settings.paper {
+            let (network, paper, reports) = learn_paper(&samples, settings, progress)?;
+            (Some(network), Some(paper), Some(reports))
+        } else {
+            (None, None, None)
+        };
+        let [network_report, lateral_report, protrusion_report] =
+            reports.map_or([None, None, None], |r| r.map(Some));
         Ok(JawRig {
             format: RIG_FORMAT.into(),
             coords,
             pca,
             network,
             paper,
+            input,
             modes,
+            couplings,
             gain,
             training_params,
             ranges,
@@ -285,16 +358,29 @@ impl JawRig {
                 lateral: lateral_report,
                 protrusion: protrusion_report,
                 modes: modes_report,
+                couplings: couplings_report,
             },
             anatomy: None,
         })
     }
 
+    /// "coupled" or "additive": which model the rig is.
+    pub fn model_name(&self) -> &'static str {
+        if self.couplings.is_some() {
+            "coupled"
+        } else {
+            "additive"
+        }
+    }
+
     /// Φ(d) in the vector units of [`Coordinates`].
     pub fn vector(&self, d: &[f64; 3]) -> Vector6<f64> {
         let raw: [f64; 3] = std::array::from_fn(|k| d[k] / self.gain[k]);
-        let x = self.modes.generate(&raw);
-        Vector6::from_fn(|q, _| self.network.mean[q] + x[q] / self.network.scale)
+        let mut x = self.modes.generate(&raw);
+        if let Some(c) = &self.couplings {
+            c.add_to(&raw, &mut x);
+        }
+        Vector6::from_fn(|q, _| self.input.mean[q] + x[q] / self.input.scale)
     }
 
     /// The jaw pose `upper_from_lower` for parameters `d`.
@@ -302,34 +388,31 @@ impl JawRig {
         self.coords.pose(&self.vector(d))
     }
 
-    /// The paper's rig: Φ1(c1) + Φ2(e2) + Φ3(e3) (base counted once), and its extraction
-    /// functions (raw components, no gain).
-    pub fn paper_extract(&self, pose: &Pose) -> [f64; 3] {
-        let c = self.network.extract(self.coords.vector(pose).as_slice());
+    /// The paper's rig, Φ1(c1) + Φ2(e2) + Φ3(e3) (base counted once), through its extraction
+    /// functions: `pose` rebuilt, where the paper's networks were learned.
+    pub fn paper_reconstruct(&self, pose: &Pose) -> Option<Pose> {
+        let (network, paper) = (self.network.as_ref()?, self.paper.as_ref()?);
+        let c = network.extract(self.coords.vector(pose).as_slice());
         let part = |keep: [usize; 2]| {
             let mut z = [0.0; NETWORK_COMPONENTS];
             for k in keep {
                 z[k] = c[k];
             }
-            self.network.generate(&z)
+            network.generate(&z)
         };
-        [
+        let raw = [
             c[0],
-            self.paper.lateral.extract(&part([1, 2]))[0],
-            self.paper.protrusion.extract(&part([3, 4]))[0],
-        ]
-    }
-
-    pub fn paper_pose(&self, raw: &[f64; 3]) -> Pose {
-        let parts = [
-            self.network.generate(&[raw[0]]),
-            self.paper.lateral.generate(&[raw[1]]),
-            self.paper.protrusion.generate(&[raw[2]]),
+            paper.lateral.extract(&part([1, 2]))[0],
+            paper.protrusion.extract(&part([3, 4]))[0],
         ];
-        let v = Vector6::from_fn(|q, _| {
-            parts[0][q] + parts[1][q] + parts[2][q] - 2.0 * self.paper.base[q]
-        });
-        self.coords.pose(&v)
+        let parts = [
+            network.generate(&[raw[0]]),
+            paper.lateral.generate(&[raw[1]]),
+            paper.protrusion.generate(&[raw[2]]),
+        ];
+        let v =
+            Vector6::from_fn(|q, _| parts[0][q] + parts[1][q] + parts[2][q] - 2.0 * paper.base[q]);
+        Some(self.coords.pose(&v))
     }
 
     /// The parameters that bring the rig closest to `pose` (the probes' squared distances):
@@ -379,7 +462,7 @@ impl JawRig {
 
     /// Read and check a rig file.
     pub fn load(path: &Path) -> Result<JawRig> {
-        let rig: JawRig = read_json(path, "rig file")?;
+        let mut rig: JawRig = read_json(path, "rig file")?;
         if rig.format != RIG_FORMAT {
             return Err(Error::invalid(
                 path,
@@ -387,11 +470,17 @@ impl JawRig {
                 format!("expected {RIG_FORMAT:?}, found {:?}", rig.format),
             ));
         }
-        for (field, net, components) in [
-            ("network", &rig.network, NETWORK_COMPONENTS),
-            ("paper.lateral", &rig.paper.lateral, 1),
-            ("paper.protrusion", &rig.paper.protrusion, 1),
-        ] {
+        let nets = [
+            ("network", rig.network.as_ref(), NETWORK_COMPONENTS),
+            ("paper.lateral", rig.paper.as_ref().map(|p| &p.lateral), 1),
+            (
+                "paper.protrusion",
+                rig.paper.as_ref().map(|p| &p.protrusion),
+                1,
+            ),
+        ];
+        for (field, net, components) in nets {
+            let Some(net) = net else { continue };
             net.check().map_err(|p| Error::invalid(path, field, p))?;
             if net.inputs != 6 || net.components != components {
                 return Err(Error::invalid(
@@ -404,11 +493,38 @@ impl JawRig {
                 ));
             }
         }
+        if rig.paper.is_some() && rig.network.is_none() {
+            return Err(Error::invalid(path, "network", "paper needs the network"));
+        }
+        // Rig files written before `input` took the network's scaling, which is the same.
+        if rig.input == InputScaling::default()
+            && let Some(net) = &rig.network
+        {
+            rig.input = InputScaling {
+                mean: std::array::from_fn(|q| net.mean.get(q).copied().unwrap_or(f64::NAN)),
+                scale: net.scale,
+            };
+        }
+        crate::capture::json::check_finite(path, "input.mean", &rig.input.mean)?;
+        if !(rig.input.scale.is_finite() && rig.input.scale > 0.0) {
+            return Err(Error::invalid(
+                path,
+                "input.scale",
+                "must be a positive number",
+            ));
+        }
         rig.modes
             .check()
             .map_err(|p| Error::invalid(path, "modes", p))?;
         if rig.modes.dims != 6 {
             return Err(Error::invalid(path, "modes.dims", "must be 6"));
+        }
+        if let Some(c) = &rig.couplings {
+            c.check()
+                .map_err(|p| Error::invalid(path, "couplings", p))?;
+            if c.dims != 6 {
+                return Err(Error::invalid(path, "couplings.dims", "must be 6"));
+            }
         }
         if let Some(k) = rig.gain.iter().position(|g| !g.is_finite() || *g == 0.0) {
             return Err(Error::invalid(
@@ -441,6 +557,48 @@ impl JawRig {
         }
         Ok(rig)
     }
+}
+
+/// The paper's five-component network and its D23/D45 construction, each reduced to one
+/// dimension, with their reports.
+fn learn_paper(
+    samples: &[Vec<f64>],
+    settings: &RigSettings,
+    progress: &Progress,
+) -> Result<(Nlpca, PaperModes, [TrainReport; 3]), RigError> {
+    let nl = |stage| move |error| RigError::Nlpca { stage, error };
+    progress("the paper's five-component NLPCA");
+    let (network, network_report) = Nlpca::train(samples, NETWORK_COMPONENTS, &settings.network)
+        .map_err(nl("five-component"))?;
+    let codes: Vec<Vec<f64>> = samples.iter().map(|s| network.extract(s)).collect();
+    let part = |keep: [usize; 2]| -> Vec<Vec<f64>> {
+        codes
+            .iter()
+            .map(|c| {
+                let mut z = vec![0.0; NETWORK_COMPONENTS];
+                for k in keep {
+                    z[k] = c[k];
+                }
+                network.generate(&z)
+            })
+            .collect()
+    };
+    progress("the paper's D23 and D45");
+    let (lateral, lateral_report) =
+        Nlpca::train(&part([1, 2]), 1, &settings.mode).map_err(nl("lateral (D23)"))?;
+    let (protrusion, protrusion_report) =
+        Nlpca::train(&part([3, 4]), 1, &settings.mode).map_err(nl("protrusion (D45)"))?;
+    let base = network.generate(&[0.0; NETWORK_COMPONENTS]);
+    let paper = PaperModes {
+        lateral,
+        protrusion,
+        base: std::array::from_fn(|k| base[k]),
+    };
+    Ok((
+        network,
+        paper,
+        [network_report, lateral_report, protrusion_report],
+    ))
 }
 
 /// Starting directions of the three modes (vector units, orthonormal): the first principal

@@ -21,6 +21,14 @@ pub struct RigArgs {
     /// Folder with upper.* and lower.* to build the subject from (default: procedural arches).
     #[arg(long)]
     meshes: Option<PathBuf>,
+    /// Jaw poses to learn from instead of synthetic motion (tracks.json, gt/poses.json or a
+    /// jawtrack-jaw/1 file, e.g. from `benches/other_joint.py`), with `--mesh`; the
+    /// adaptation to a second subject is then left out.
+    #[arg(long, requires = "mesh")]
+    poses: Option<PathBuf>,
+    /// The mandible mesh of `--poses` (lower frame).
+    #[arg(long, requires = "poses")]
+    mesh: Option<PathBuf>,
     /// Random rig poses for Fig. 13.
     #[arg(long, default_value_t = 1000)]
     samples: usize,
@@ -40,7 +48,10 @@ struct RigBench {
     poses: usize,
     /// Reading the poses file, jaw poses from upper/lower (Eq. 1-3) and the se(3) log of each.
     extraction_ms: f64,
+    /// Learning the rig (its modes and, coupled, their couplings).
     learn_seconds: f64,
+    /// Learning the paper's five-component NLPCA and D23/D45 as well (for the figures).
+    paper_seconds: f64,
     ik_ms_per_query: f64,
     ik_mean_residual_mm: f64,
     eval: jawtrack::rig::eval::EvalReport,
@@ -68,11 +79,20 @@ pub fn rig(a: RigArgs) -> anyhow::Result<()> {
         no_masks: true,
         ..Default::default()
     };
-    generate(&capture, &opts, &|| {}).context("synthesising the motion")?;
-    let (_, metric) = crate::cli::args::load_mesh(&capture.join("meshes/mandible.obj"))?;
+    let (poses_path, mesh_path) = match (&a.poses, &a.mesh) {
+        (Some(p), Some(m)) => (p.clone(), m.clone()),
+        _ => {
+            generate(&capture, &opts, &|| {}).context("synthesising the motion")?;
+            (
+                capture.join("gt/poses.json"),
+                capture.join("meshes/mandible.obj"),
+            )
+        }
+    };
+    let (mandible, metric) = crate::cli::args::load_mesh(&mesh_path)?;
 
     let t = Instant::now();
-    let poses = read_jaw_poses(&capture.join("gt/poses.json"))?;
+    let poses = read_jaw_poses(&poses_path)?;
     let coords = jawtrack::anatomy::Coordinates::for_mesh(&metric);
     let vectors: Vec<_> = poses.poses.iter().map(|p| coords.vector(p)).collect();
     let extraction_ms = t.elapsed().as_secs_f64() * 1e3;
@@ -82,22 +102,35 @@ pub fn rig(a: RigArgs) -> anyhow::Result<()> {
     settings.network.seed = a.seed;
     settings.mode.seed = a.seed;
     settings.modes.seed = a.seed;
-    let rig = crate::cli::run::with_spinner("learning the rig", || {
-        JawRig::learn(&poses.poses, &metric, &settings)
+    settings.paper = true;
+    let rig = crate::cli::run::with_progress("learning the rig", |progress| {
+        JawRig::learn(&poses.poses, &metric, &settings, progress)
     })?;
     let (ik_ms, ik_residual) = time_ik(&rig, &metric, a.ik_queries, a.seed);
     let eval = jawtrack::rig::eval::report(&rig, &poses.poses, &metric, a.samples, a.seed, true)?;
     if let Some(p) = &a.plots {
         jawtrack::rig::plot::write_figures(p, &eval.reconstruction, eval.sampled.as_ref())?;
     }
-    let (mandible, _) = crate::cli::args::load_mesh(&capture.join("meshes/mandible.obj"))?;
     let frame = jawtrack::envelope::JawFrame::from_mesh(&mandible, None, None)?;
     let compare = jawtrack::envelope::compare::compare(&poses.poses, &frame, &metric)?;
-    let adaptation = adapt_to_variant(&poses.poses, &frame, &metric, &a, dir.path())?;
+    let adaptation = if a.poses.is_none() {
+        adapt_to_variant(&poses.poses, &frame, &metric, &a, dir.path())?
+    } else {
+        Vec::new()
+    };
     let report = RigBench {
         poses: poses.len(),
         extraction_ms,
-        learn_seconds: rig.training.seconds,
+        learn_seconds: rig.training.modes.seconds
+            + rig.training.couplings.as_ref().map_or(0.0, |c| c.seconds),
+        paper_seconds: [
+            &rig.training.network,
+            &rig.training.lateral,
+            &rig.training.protrusion,
+        ]
+        .iter()
+        .filter_map(|r| r.as_ref().map(|r| r.seconds))
+        .sum(),
         ik_ms_per_query: ik_ms,
         ik_mean_residual_mm: ik_residual,
         eval,
@@ -108,17 +141,21 @@ pub fn rig(a: RigArgs) -> anyhow::Result<()> {
         println!("{}", serde_json::to_string_pretty(&report)?);
         return Ok(());
     }
+    let source = match &a.poses {
+        Some(p) => p.display().to_string(),
+        None => format!("synthetic TMJ motion (seed {})", a.seed),
+    };
     println!(
-        "synthetic TMJ motion: {} poses (seed {}), mandible with condyles ({} vertices); machine: {} cores",
+        "{source}: {} poses, mandible of {} vertices; machine: {} cores",
         report.poses,
-        a.seed,
         metric.vertex_count(),
         std::thread::available_parallelism().map_or(1, |n| n.get())
     );
     println!(
-        "relative poses + se(3) for all poses: {:.1} ms; learning: {:.2} s; IK: {:.3} ms a query (mean residual {:.3} mm over {} reachable targets)",
+        "relative poses + se(3) for all poses: {:.1} ms; learning the rig: {:.2} s (the paper's networks, for the figures: {:.2} s more); IK: {:.3} ms a query (mean residual {:.3} mm over {} reachable targets)",
         report.extraction_ms,
         report.learn_seconds,
+        report.paper_seconds,
         report.ik_ms_per_query,
         report.ik_mean_residual_mm,
         a.ik_queries
@@ -126,6 +163,9 @@ pub fn rig(a: RigArgs) -> anyhow::Result<()> {
     crate::cli::report::rig_eval(&report.eval);
     println!();
     crate::cli::report::rig_compare(report.poses, metric.vertex_count(), &report.compare);
+    if report.adaptation.is_empty() {
+        return Ok(());
+    }
     println!();
     println!(
         "adaptation to a second subject (`synth --joint variant`, same teeth), from its five extremal poses; error over its whole motion ({} poses):",

@@ -3,7 +3,7 @@
 use std::path::PathBuf;
 
 use anyhow::Context;
-use jawtrack::rig::model::NETWORK_COMPONENTS;
+use jawtrack::rig::model::{NETWORK_COMPONENTS, RigModel};
 use jawtrack::rig::{JawRig, RigSettings, read_jaw_poses};
 use serde::Serialize;
 
@@ -25,6 +25,13 @@ pub struct LearnArgs {
     /// Alpha radius of the valid-range shapes, in parameter units.
     #[arg(long, default_value_t = RigSettings::default().alpha, value_parser = crate::cli::args::number_in(1e-6, 100.0))]
     pub alpha: f64,
+    /// The three-parameter model: the modes and their couplings, or the paper's sum (Eq. 5).
+    #[arg(long, value_enum, default_value_t = Model::Coupled)]
+    pub model: Model,
+    /// Also learn the paper's five-component NLPCA and its D23/D45 construction (for the
+    /// figures of `rig eval`; the rig does not need them, and they take most of the time).
+    #[arg(long)]
+    pub paper: bool,
     /// Seed of the networks' initial weights.
     #[arg(long, default_value_t = 0)]
     pub seed: u64,
@@ -75,16 +82,25 @@ pub struct CompareArgs {
     pub json: bool,
 }
 
+#[derive(Clone, Copy, Debug, PartialEq, Eq, clap::ValueEnum)]
+pub enum Model {
+    Coupled,
+    Additive,
+}
+
 #[derive(Serialize)]
 struct LearnSummary<'a> {
     rig: String,
+    model: &'static str,
     poses: usize,
     skipped: usize,
     read_seconds: f64,
     learn_seconds: f64,
     singular_values_mm: &'a [f64],
-    network_unexplained: &'a [f64],
-    iterations: [u64; 3],
+    /// The paper's network (`--paper`).
+    network_unexplained: Option<&'a [f64]>,
+    /// Share of the variance the rig leaves unexplained.
+    unexplained: f64,
     d1_range: [f64; 2],
     bounds: [[f64; 2]; 3],
 }
@@ -97,9 +113,14 @@ pub fn learn(a: LearnArgs) -> anyhow::Result<()> {
     settings.network.seed = a.seed;
     settings.mode.seed = a.seed;
     settings.modes.seed = a.seed;
+    settings.model = match a.model {
+        Model::Coupled => RigModel::Coupled,
+        Model::Additive => RigModel::Additive,
+    };
+    settings.paper |= a.paper;
     settings.validate(std::path::Path::new("--alpha"))?;
-    let rig = crate::cli::run::with_spinner("learning the rig", || {
-        JawRig::learn(&poses.poses, &metric, &settings)
+    let rig = crate::cli::run::with_progress("learning the rig", |progress| {
+        JawRig::learn(&poses.poses, &metric, &settings, progress)
     })?
     .with_anatomy(&mesh, &poses.poses);
     rig.save(&a.out)?;
@@ -110,12 +131,18 @@ pub fn learn(a: LearnArgs) -> anyhow::Result<()> {
         read_seconds,
         learn_seconds: rig.training.seconds,
         singular_values_mm: &rig.pca.singular_values,
-        network_unexplained: &rig.training.network.unexplained,
-        iterations: [
-            rig.training.network.iterations,
-            rig.training.lateral.iterations,
-            rig.training.protrusion.iterations,
-        ],
+        model: rig.model_name(),
+        network_unexplained: rig
+            .training
+            .network
+            .as_ref()
+            .map(|n| n.unexplained.as_slice()),
+        unexplained: rig
+            .training
+            .couplings
+            .as_ref()
+            .unwrap_or(&rig.training.modes)
+            .unexplained,
         d1_range: rig.ranges.d1_range(),
         bounds: rig.ranges.bounds,
     };
@@ -136,9 +163,15 @@ pub fn learn(a: LearnArgs) -> anyhow::Result<()> {
         fmt_list(&rig.pca.singular_values, 3)
     );
     println!(
-        "NLPCA-{NETWORK_COMPONENTS}: share of variance unexplained with 1..{NETWORK_COMPONENTS} components: {}",
-        fmt_list(&rig.training.network.unexplained, 6)
+        "the {} rig leaves {:.6} of the variance unexplained",
+        summary.model, summary.unexplained
     );
+    if let Some(u) = summary.network_unexplained {
+        println!(
+            "NLPCA-{NETWORK_COMPONENTS}: share of variance unexplained with 1..{NETWORK_COMPONENTS} components: {}",
+            fmt_list(u, 6)
+        );
+    }
     let r = rig.ranges.d1_range();
     println!(
         "parameters: d1 (opening) {:.3}..{:.3}, d2 (lateral) {:.3}..{:.3}, d3 (protrusion) {:.3}..{:.3}; valid d1 {:.3}..{:.3} (alpha {})",
