@@ -1,18 +1,19 @@
-//! The three-parameter jaw rig (the paper's Eq. 5):
-//! Φ(d1, d2, d3) = Φ1(d1) + Φ2(d2) + Φ3(d3) in se(3), mapped back with exp.
+//! The three-parameter jaw rig: the paper's Eq. 5, Φ(d1, d2, d3) = Φ1(d1) + Φ2(d2) + Φ3(d3) in
+//! se(3), mapped back with exp, by default with the modes' pairwise couplings added
+//! (coupled.rs), which vanish wherever either of their parameters is zero.
 //!
-//! Learning: PCA and the five-component hierarchical NLPCA of the jaw vectors (the paper's
-//! first step, kept for the figures and its input scaling), then the three modes Φi fitted
-//! together as one additive model (additive.rs), from straight starting modes: opening along
-//! the first principal direction, lateral excursion and protrusion in the plane of the next
-//! two. The paper's own construction of Φ2 and Φ3 (one-component NLPCAs of
-//! D23 = {Φgen(0, c2, c3, 0, 0)} and D45 = {Φgen(0, 0, 0, c4, c5)}, the base point Φgen(0)
-//! counted once) is built as well and kept as [`PaperModes`] for comparison: it assumes
-//! components 2-3 are lateral excursion and 4-5 protrusion, which fails on motion whose
-//! remainder after opening is two-dimensional.
+//! Learning: PCA of the jaw vectors, then the three modes Φi fitted together as one additive
+//! model (additive.rs), from straight starting modes: opening along the first principal
+//! direction, lateral excursion and protrusion in the plane of the next two; then, coupled,
+//! the couplings with them. With `paper` set, the paper's first step is learned as well, for
+//! the figures: the five-component hierarchical NLPCA and the paper's own construction of Φ2
+//! and Φ3 (one-component NLPCAs of D23 = {Φgen(0, c2, c3, 0, 0)} and
+//! D45 = {Φgen(0, 0, 0, c4, c5)}, the base point Φgen(0) counted once), kept as
+//! [`PaperModes`]. That construction assumes components 2-3 are lateral excursion and 4-5
+//! protrusion, which fails on motion whose remainder after opening is two-dimensional.
 //!
 //! Parameters: each d_i is the mode's own parameter times a gain that makes it an arc length
-//! along the mode in the network's input units (where the widest coordinate has a standard
+//! along the mode in the rig's input units (where the widest coordinate has a standard
 //! deviation of 0.1, as in Scholz's NLPCA; the paper's d1 runs over about −0.2..0.33 in such
 //! units) and points the intuitive way: d1 up opens the mouth, d2 up moves the chin to the
 //! subject's left (+x), d3 up moves it forward (+z).
