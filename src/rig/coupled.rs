@@ -17,7 +17,7 @@ use rand_chacha::ChaCha8Rng;
 use serde::{Deserialize, Serialize};
 
 use super::Progress;
-use super::additive::{self, AdditiveModes, AdditiveReport, Layout, MODES};
+use super::additive::{self, AdditiveModes, AdditiveReport, AdditiveSettings, Layout, MODES};
 
 /// The pairs of modes coupled: opening with lateral, opening with protrusion, lateral with
 /// protrusion.
@@ -93,36 +93,13 @@ impl Couplings {
     }
 }
 
-#[derive(Debug, Clone, Serialize, Deserialize, PartialEq)]
-#[serde(default, deny_unknown_fields)]
-pub struct CouplingSettings {
-    /// Hidden tanh units per coupling.
-    pub hidden: usize,
-    pub max_iterations: u64,
-    pub memory: usize,
-    /// ν · mean(w²) over the couplings' and the modes' weights.
-    pub weight_decay: f64,
-}
-
-impl Default for CouplingSettings {
-    fn default() -> Self {
-        CouplingSettings {
-            hidden: 4,
-            max_iterations: 3000,
-            memory: 10,
-            weight_decay: 1e-7,
-        }
-    }
-}
-
-impl CouplingSettings {
-    /// Every field in its range (see [`crate::settings`]).
-    pub fn validate(&self, rules: &crate::settings::Rules) -> crate::error::Result<()> {
-        rules.count("hidden", self.hidden as u64, 1, 1024)?;
-        rules.count("max_iterations", self.max_iterations, 0, 10_000_000)?;
-        rules.count("memory", self.memory as u64, 1, 1000)?;
-        rules.number("weight_decay", self.weight_decay, 0.0, 1e3)?;
-        Ok(())
+/// The couplings' settings: those of the modes' fit (hidden units per coupling, iterations,
+/// memory, weight decay over the couplings' and the modes' weights, seed), with fewer hidden
+/// units by default.
+pub fn default_settings() -> AdditiveSettings {
+    AdditiveSettings {
+        hidden: 4,
+        ..Default::default()
     }
 }
 
@@ -261,8 +238,7 @@ pub(super) fn fit(
     data: &[f64],
     base: Layout,
     theta: Vec<f64>,
-    settings: &CouplingSettings,
-    seed: u64,
+    settings: &AdditiveSettings,
     progress: &Progress,
 ) -> (AdditiveModes, Couplings, Vec<[f64; MODES]>, AdditiveReport) {
     let started = std::time::Instant::now();
@@ -270,7 +246,7 @@ pub(super) fn fit(
         base,
         h: settings.hidden.max(1),
     };
-    let mut rng = ChaCha8Rng::seed_from_u64(seed ^ 0xC0_0C1E);
+    let mut rng = ChaCha8Rng::seed_from_u64(settings.seed ^ 0xC0_0C1E);
     let mut full = theta;
     full.resize(c.len(), 0.0);
     for p in 0..PAIRS.len() {
@@ -384,7 +360,7 @@ mod tests {
             std::array::from_fn(|k| (0..6).map(|q| if q == k { 1.0 } else { 0.0 }).collect());
         let settings = additive::AdditiveSettings::default();
         let (base, theta, sum) = additive::fit_vector(&data, 6, &dirs, &settings, &|_| {});
-        let (_, _, _, coupled) = fit(&data, base, theta, &CouplingSettings::default(), 0, &|_| {});
+        let (_, _, _, coupled) = fit(&data, base, theta, &default_settings(), &|_| {});
         assert!(
             coupled.unexplained < 0.1 * sum.unexplained,
             "sum {sum:?}, coupled {coupled:?}"

@@ -25,7 +25,7 @@ use serde::{Deserialize, Serialize};
 
 use super::Progress;
 use super::additive::{self, AdditiveModes, AdditiveReport, AdditiveSettings};
-use super::coupled::{self, CouplingSettings, Couplings};
+use super::coupled::{self, Couplings};
 use super::nlpca::{Nlpca, NlpcaError, NlpcaSettings, TrainReport};
 use super::ranges::{RangeError, Ranges};
 use crate::anatomy::Coordinates;
@@ -70,7 +70,7 @@ pub struct RigSettings {
     /// The rig's three modes, fitted together.
     pub modes: AdditiveSettings,
     /// Their couplings (the coupled model).
-    pub couplings: CouplingSettings,
+    pub couplings: AdditiveSettings,
     /// Alpha radius of the range shapes, in parameter units (the paper: 0.12).
     pub alpha: f64,
     /// Gauss-Newton steps when encoding a pose (0: the extraction functions alone).
@@ -93,7 +93,7 @@ impl Default for RigSettings {
                 ..Default::default()
             },
             modes: AdditiveSettings::default(),
-            couplings: CouplingSettings::default(),
+            couplings: coupled::default_settings(),
             alpha: 0.12,
             encode_steps: 8,
         }
@@ -165,23 +165,12 @@ impl InputScaling {
     const STD: f64 = 0.1;
 
     fn of(samples: &[Vec<f64>]) -> Result<InputScaling, RigError> {
-        let n = samples.len().max(1) as f64;
-        let mean: [f64; 6] = std::array::from_fn(|q| samples.iter().map(|s| s[q]).sum::<f64>() / n);
-        let max_std = (0..6)
-            .map(|q| {
-                (samples
-                    .iter()
-                    .map(|s| (s[q] - mean[q]).powi(2))
-                    .sum::<f64>()
-                    / n)
-                    .sqrt()
-            })
-            .fold(0.0, f64::max);
+        let (mean, max_std) = super::nlpca::mean_and_widest_std(samples);
         if max_std.is_nan() || max_std <= 1e-12 {
             return Err(RigError::NoMotion);
         }
         Ok(InputScaling {
-            mean,
+            mean: std::array::from_fn(|q| mean[q]),
             scale: Self::STD / max_std,
         })
     }
@@ -313,14 +302,8 @@ impl JawRig {
         let (modes, couplings, raw, couplings_report) = match settings.model {
             RigModel::Additive => (base.unpack(&theta), None, base.params(&theta), None),
             RigModel::Coupled => {
-                let (m, c, raw, report) = coupled::fit(
-                    &normalised,
-                    base,
-                    theta,
-                    &settings.couplings,
-                    settings.modes.seed,
-                    progress,
-                );
+                let (m, c, raw, report) =
+                    coupled::fit(&normalised, base, theta, &settings.couplings, progress);
                 (m, Some(c), raw, Some(report))
             }
         };

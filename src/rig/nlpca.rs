@@ -94,6 +94,27 @@ pub enum NlpcaError {
     BadShape { inputs: usize, components: usize },
 }
 
+/// The samples' mean and the largest standard deviation of any coordinate (over n, not n − 1):
+/// the input scaling takes the widest coordinate to a standard deviation of 0.1.
+pub(super) fn mean_and_widest_std(samples: &[Vec<f64>]) -> (Vec<f64>, f64) {
+    let d = samples.first().map_or(0, Vec::len);
+    let n = samples.len().max(1) as f64;
+    let mean: Vec<f64> = (0..d)
+        .map(|q| samples.iter().map(|s| s[q]).sum::<f64>() / n)
+        .collect();
+    let max_std = (0..d)
+        .map(|q| {
+            (samples
+                .iter()
+                .map(|s| (s[q] - mean[q]).powi(2))
+                .sum::<f64>()
+                / n)
+                .sqrt()
+        })
+        .fold(0.0, f64::max);
+    (mean, max_std)
+}
+
 impl Nlpca {
     fn shape(&self) -> Shape {
         Shape {
@@ -124,20 +145,7 @@ impl Nlpca {
                 got: samples.len(),
             });
         }
-        let n = samples.len() as f64;
-        let mean: Vec<f64> = (0..d)
-            .map(|q| samples.iter().map(|s| s[q]).sum::<f64>() / n)
-            .collect();
-        let max_std = (0..d)
-            .map(|q| {
-                (samples
-                    .iter()
-                    .map(|s| (s[q] - mean[q]).powi(2))
-                    .sum::<f64>()
-                    / n)
-                    .sqrt()
-            })
-            .fold(0.0, f64::max);
+        let (mean, max_std) = mean_and_widest_std(samples);
         if max_std <= 1e-12 {
             return Err(NlpcaError::NoVariance);
         }

@@ -102,6 +102,7 @@ pub fn rig(a: RigArgs) -> anyhow::Result<()> {
     settings.network.seed = a.seed;
     settings.mode.seed = a.seed;
     settings.modes.seed = a.seed;
+    settings.couplings.seed = a.seed;
     settings.paper = true;
     let rig = crate::cli::run::with_progress("learning the rig", |progress| {
         JawRig::learn(&poses.poses, &metric, &settings, progress)

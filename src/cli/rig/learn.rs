@@ -113,6 +113,7 @@ pub fn learn(a: LearnArgs) -> anyhow::Result<()> {
     settings.network.seed = a.seed;
     settings.mode.seed = a.seed;
     settings.modes.seed = a.seed;
+    settings.couplings.seed = a.seed;
     settings.model = match a.model {
         Model::Coupled => RigModel::Coupled,
         Model::Additive => RigModel::Additive,
