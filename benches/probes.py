@@ -16,15 +16,25 @@ by another program), runs the binary on it with a time limit, and classifies wha
 Usage: benches/probes.py BINARY [--json OUT.json] [--only CLASS]
 Memory is capped at 8 GiB per run (RLIMIT_AS), so an unbounded allocation shows as ABORT
 instead of taking the machine down.
+
+The view-* classes talk HTTP to `jawtrack view` (one server a probe, started on a free port and
+always killed): there PANIC and ABORT are the server dying, HANG a reply that does not come in
+time, ACCEPTED a 200 to a question that must be refused, and rejected any other reply or a
+closed connection. A class whose tool is missing (video-names without ffmpeg) is skipped.
 """
 
 import argparse
+import atexit
+import hashlib
 import json
 import os
 import random
+import re
 import resource
+import select
 import shutil
 import signal
+import socket
 import stat
 import struct
 import subprocess
@@ -78,9 +88,16 @@ def run(argv, cwd, limit=LIMIT_S):
 
 
 class Probe:
-    def __init__(self, cls, name, setup, expect="reject", check=None):
-        # setup(dir) -> (argv without the binary, size in bytes of the hostile input)
+    def __init__(self, cls, name, setup, expect="reject", check=None, direct=False, needs=None):
+        # setup(dir) -> (argv without the binary, size in bytes of the hostile input); with
+        # direct, setup(dir) runs the probe itself -> (outcome, rc, stderr, peak RSS, input size).
+        # needs() -> None, or why the probe cannot run here (it is skipped).
         self.cls, self.name, self.setup, self.expect, self.check = cls, name, setup, expect, check
+        self.direct, self.needs = direct, needs
+
+
+class SetupFailed(Exception):
+    pass
 
 
 def capture(d):
@@ -119,9 +136,16 @@ def says(*words):
     return check
 
 
-def probe(cls, name, expect="reject", check=None):
+def probe(cls, name, expect="reject", check=None, needs=None):
     def wrap(fn):
-        PROBES.append(Probe(cls, name, fn, expect, check))
+        PROBES.append(Probe(cls, name, fn, expect, check, needs=needs))
+        return fn
+    return wrap
+
+
+def direct_probe(cls, name, needs=None):
+    def wrap(fn):
+        PROBES.append(Probe(cls, name, fn, direct=True, needs=needs))
         return fn
     return wrap
 
@@ -547,6 +571,532 @@ for rel in MUTATED:
         probe("mutated files", f"{rel} #{k}", expect="any")(setup)
 
 
+# -- a synthetic capture and its rig, made once a run (issue 23's findings) ------------------
+_CACHE = {}
+
+
+def synthetic():
+    """A 40-frame synthetic capture and the rig learned from its ground truth: (capture, rig)."""
+    if "synthetic" not in _CACHE:
+        keep = Path(tempfile.mkdtemp(prefix="jawtrack-probes-"))
+        atexit.register(shutil.rmtree, keep, True)
+        c, rig = keep / "cap", keep / "rig.json"
+        subprocess.run([BINARY, "synth", str(c), "--frames", "40"], capture_output=True, check=True)
+        subprocess.run([BINARY, "rig", "learn", str(c / "gt/poses.json"), "--mesh", str(c / "meshes/mandible.obj"),
+                        "-o", str(rig)], capture_output=True, check=True)
+        _CACHE["synthetic"] = (c, rig)
+    return _CACHE["synthetic"]
+
+
+def synthetic_copy(d):
+    c = Path(d) / "cap"
+    shutil.copytree(synthetic()[0], c)
+    return c
+
+
+def without_jaw(v):
+    """A tracks file's records less their derived `jaw` (which a jawtrack may check apart)."""
+    for f in v["frames"]:
+        f.pop("jaw", None)
+
+
+def digest(path):
+    try:
+        return hashlib.sha256(Path(path).read_bytes()).hexdigest()
+    except OSError:
+        return None
+
+
+def limit_child():
+    resource.setrlimit(resource.RLIMIT_AS, (MEM_CAP, MEM_CAP))
+    os.setsid()
+
+
+# -- the view server ------------------------------------------------------------------------
+
+
+class Server:
+    """`jawtrack view RIG --capture CAP --port 0`, under the same memory cap; always killed."""
+
+    def __init__(self, d):
+        c, rig = synthetic()
+        self.err = tempfile.TemporaryFile()
+        self.argv = [BINARY, "view", str(rig), "--capture", str(c), "--port", "0"]
+        self.p = subprocess.Popen(self.argv, cwd=d, stdout=subprocess.PIPE, stderr=self.err,
+                                  preexec_fn=limit_child, env={**os.environ, "RUST_BACKTRACE": "0"})
+        self.status = self.usage = None
+        self.port = None
+        out, deadline = b"", time.time() + LIMIT_S
+        while self.port is None and time.time() < deadline and self.alive():
+            if select.select([self.p.stdout], [], [], 0.1)[0]:
+                chunk = os.read(self.p.stdout.fileno(), 4096)
+                if not chunk:
+                    break
+                out += chunk
+                m = re.search(rb"jawtrack view: http://[^:/]+:(\d+)/", out)
+                if m:
+                    self.port = int(m.group(1))
+        if self.port is None:
+            self.close()
+            raise SetupFailed(f"view did not start: {out[-200:]!r} {self.stderr()[-300:]}")
+
+    def alive(self):
+        if self.status is None:
+            pid, status, usage = os.wait4(self.p.pid, os.WNOHANG)
+            if pid:
+                self.status, self.usage = status, usage
+                self.p.returncode = 0  # reaped here, not by Popen
+        return self.status is None
+
+    def hwm(self):
+        """The server's peak resident memory so far (bytes)."""
+        if self.alive():
+            try:
+                for line in Path(f"/proc/{self.p.pid}/status").read_text().splitlines():
+                    if line.startswith("VmHWM:"):
+                        return int(line.split()[1]) * 1024
+            except OSError:
+                pass
+        return self.usage.ru_maxrss * 1024 if self.usage else 0
+
+    def rc(self):
+        if self.alive():
+            return None
+        return -os.WTERMSIG(self.status) if os.WIFSIGNALED(self.status) else os.WEXITSTATUS(self.status)
+
+    def stderr(self):
+        self.err.seek(0)
+        return self.err.read().decode("utf-8", "replace")
+
+    def crash(self):
+        """PANIC or ABORT when the server died (or a thread of it panicked), else None."""
+        time.sleep(0.2)  # let a dying server finish dying
+        rc = self.rc()
+        if rc == 101 or "panicked at" in self.stderr():
+            return "PANIC"
+        if rc is not None:
+            return "ABORT"  # killed by a signal, or it stopped serving
+        return None
+
+    def close(self):
+        if self.alive():
+            try:
+                os.killpg(self.p.pid, signal.SIGKILL)
+            except ProcessLookupError:
+                pass
+            pid, status, usage = os.wait4(self.p.pid, 0)
+            self.usage = usage
+            self.p.returncode = 0
+        if self.p.stdout:
+            self.p.stdout.close()
+
+    def __enter__(self):
+        return self
+
+    def __exit__(self, *exc):
+        self.close()
+
+
+def request_bytes(port, method, path, body=None, headers=None):
+    hdrs = {"Host": f"127.0.0.1:{port}", "Connection": "close"}
+    data = b""
+    if body is not None:
+        data = body if isinstance(body, bytes) else json.dumps(body).encode()
+        hdrs["Content-Type"] = "application/json"
+        hdrs["Content-Length"] = str(len(data))
+    for k, v in (headers or {}).items():
+        if v is None:
+            hdrs.pop(k, None)
+        else:
+            hdrs[k] = v
+    head = f"{method} {path} HTTP/1.1\r\n" + "".join(f"{k}: {v}\r\n" for k, v in hdrs.items()) + "\r\n"
+    return head.encode() + data
+
+
+def read_reply(s, deadline):
+    """What the server sends until it closes, its Content-Length is met, or the deadline."""
+    got = b""
+    while True:
+        left = deadline - time.time()
+        if left <= 0:
+            raise socket.timeout()
+        s.settimeout(left)
+        try:
+            chunk = s.recv(1 << 16)
+        except (ConnectionResetError, BrokenPipeError):
+            return got
+        if not chunk:
+            return got
+        got += chunk
+        head, sep, rest = got.partition(b"\r\n\r\n")
+        if sep:
+            m = re.search(rb"(?im)^content-length:\s*(\d+)", head)
+            if m and len(rest) >= int(m.group(1)):
+                return got
+
+
+def parse_reply(got):
+    m = re.match(rb"HTTP/1\.[01] (\d{3})", got)
+    body = got.partition(b"\r\n\r\n")[2].decode("utf-8", "replace")
+    return (int(m.group(1)) if m else None), " ".join(body.split())[:160]
+
+
+def http(port, method, path, body=None, headers=None, timeout=10.0):
+    """One request on a new connection: (status, body text, seconds). The status is None when the
+    connection closed without a reply, "timeout" when no reply came in time."""
+    started = time.time()
+    try:
+        with socket.create_connection(("127.0.0.1", port), timeout=timeout) as s:
+            s.sendall(request_bytes(port, method, path, body, headers))
+            got = read_reply(s, started + timeout)
+    except socket.timeout:
+        return "timeout", "", time.time() - started
+    except OSError as e:
+        return None, str(e), time.time() - started
+    status, text = parse_reply(got)
+    return status, text, time.time() - started
+
+
+def answer(srv, what, status, text, secs, n=0):
+    """A direct probe's result from one reply: a 200 is ACCEPTED."""
+    crash = srv.crash()
+    outcome = crash or ("HANG" if status == "timeout" else "ACCEPTED" if status == 200 else "rejected")
+    note = f"{what}: {status} {text} ({secs:.2f} s)"
+    if crash:
+        panics = [line for line in srv.stderr().splitlines() if "panicked" in line]
+        note += f"; the server {'exited with ' + str(srv.rc()) if srv.rc() is not None else 'panicked'}"
+        note += f": {panics[0]}" if panics else ""
+    return outcome, srv.rc(), srv.stderr() + "\n" + note, srv.hwm(), n
+
+
+PAGE_POSE = {"target": [10, 0, 0], "from": [0, 0, 0]}
+
+
+def control(srv, method="POST", path="/api/pose", body=PAGE_POSE):
+    """The page's own request must be answered, or the probe says nothing."""
+    status, text, _ = http(srv.port, method, path, body if method == "POST" else None)
+    if status != 200:
+        raise SetupFailed(f"the page's own {method} {path} was answered {status} {text}")
+
+
+def served(cls, name, method, path, body=None, headers=None, timeout=10.0, needs_control=True):
+    """A direct probe of one request to a fresh server."""
+    def fn(d):
+        with Server(d) as srv:
+            if needs_control:
+                control(srv)
+            status, text, secs = http(srv.port, method, path, body, headers, timeout)
+            return answer(srv, f"{method} {path}", status, text, secs)
+    direct_probe(cls, name)(fn)
+
+
+# -- view-numbers: huge numbers in the page's questions ------------------------------------
+served("view-numbers", "POST /api/ik target [1e308, 0, 0]", "POST", "/api/ik",
+       {"part": "lower", "vertex": 0, "target": [1e308, 0, 0], "from": [0, 0, 0]})
+served("view-numbers", "POST /api/ik from [1e308, 0, 0]", "POST", "/api/ik",
+       {"part": "lower", "vertex": 0, "target": [0, -10, 0], "from": [1e308, 0, 0]})
+served("view-numbers", "POST /api/pose from [1e308, 0, 0]", "POST", "/api/pose",
+       {"target": [10, 0, 0], "from": [1e308, 0, 0]})
+served("view-numbers", "POST /api/pose target [1e308, 0, 0]", "POST", "/api/pose",
+       {"target": [1e308, 0, 0], "from": [0, 0, 0]})
+for args in (["--point", "0,0,0", "--target", "1e308,0,0"],
+             ["--point", "0,0,0", "--target", "0,-10,0", "--from", "1e308,0,0"],
+             ["--point", "1e308,0,0", "--target", "0,-10,0"]):
+    probe("view-numbers", "rig ik " + " ".join(args))(lambda d, args=args: (["rig", "ik", str(synthetic()[1]), *args], 0))
+
+# -- view-origin: requests a page of another site (or a rebound name) can make --------------
+
+
+def origin_probe(name, method, path, headers, body=None):
+    def fn(d):
+        with Server(d) as srv:
+            control(srv, method, path, PAGE_POSE if method == "POST" else None)
+            hdrs = {k: v.format(port=srv.port) for k, v in headers.items()}
+            status, text, secs = http(srv.port, method, path, body, hdrs)
+            return answer(srv, f"{method} {path} {hdrs}", status, text, secs)
+    direct_probe("view-origin", name)(fn)
+
+
+origin_probe("GET /api/scene with Host: evil.example", "GET", "/api/scene", {"Host": "evil.example"})
+origin_probe("GET /api/scene with Host: evil.example:PORT (DNS rebinding)", "GET", "/api/scene",
+             {"Host": "evil.example:{port}"})
+origin_probe("POST /api/pose with Origin: http://evil.example", "POST", "/api/pose",
+             {"Origin": "http://evil.example"}, PAGE_POSE)
+origin_probe("POST /api/pose as Content-Type text/plain (a simple cross-site request)", "POST", "/api/pose",
+             {"Content-Type": "text/plain"}, PAGE_POSE)
+
+# -- view-slow: slow and large clients ------------------------------------------------------
+
+
+def slow_then_get(d, first):
+    with Server(d) as srv:
+        hold = socket.create_connection(("127.0.0.1", srv.port), timeout=5)
+        try:
+            hold.sendall(first(srv.port))
+            time.sleep(0.2)
+            status, text, secs = http(srv.port, "GET", "/", timeout=5.0)
+        finally:
+            hold.close()
+        crash = srv.crash()
+        hung = status == "timeout" or secs > 3.0
+        outcome = crash or ("HANG" if hung else "ran" if status == 200 else "rejected")
+        note = f"GET / on a second connection: {status} after {secs:.2f} s"
+        return outcome, srv.rc(), srv.stderr() + "\n" + note, srv.hwm(), 0
+
+
+direct_probe("view-slow", "a body announced as 4000000 bytes, 1 sent, held open; then GET /")(
+    lambda d: slow_then_get(d, lambda port: request_bytes(
+        port, "POST", "/api/pose", None, {"Content-Type": "application/json", "Content-Length": "4000000"}) + b"{"))
+direct_probe("view-slow", "a head never finished, held open; then GET /")(
+    lambda d: slow_then_get(d, lambda port: b"GET / HTTP/1.1\r\nHost: 127.0.0.1\r\n"))
+
+
+def setup_long_header(d):
+    with Server(d) as srv:
+        s = socket.create_connection(("127.0.0.1", srv.port), timeout=5)
+        closed, got, sent = False, b"", 0
+        started = time.time()
+        try:
+            s.sendall(f"GET / HTTP/1.1\r\nHost: 127.0.0.1:{srv.port}\r\nX-Long: ".encode())
+            chunk = b"a" * (1 << 20)
+            for i in range(300):
+                s.sendall(chunk)
+                sent += 1
+                # Stop early once it is known (or slow): the probe stays within seconds.
+                if i % 8 == 7 and (srv.hwm() > 300 << 20 or time.time() - started > 6.0):
+                    break
+            else:
+                s.sendall(b"\r\n\r\n")
+        except (BrokenPipeError, ConnectionResetError):
+            closed = True
+        except socket.timeout:
+            pass  # it stopped reading: its reply tells
+        try:
+            got = read_reply(s, time.time() + 5.0)
+            closed = True
+        except socket.timeout:
+            pass
+        finally:
+            s.close()
+        hwm = srv.hwm()
+        status, text = parse_reply(got)
+        crash = srv.crash()
+        if crash:
+            outcome = crash
+        elif hwm > 300 << 20:
+            outcome = "OVER-MEM"
+        elif status == 200:
+            outcome = "ACCEPTED"
+        elif status is not None or closed:
+            outcome = "rejected"
+        else:
+            outcome = "HANG"
+        note = (f"header line, {sent} MB of 300 sent: {status} {text} (closed {closed}, "
+                f"{time.time() - started:.2f} s)")
+        return outcome, srv.rc(), srv.stderr() + "\n" + note, hwm, 0
+
+
+direct_probe("view-slow", "a 300 MB header line (peak over 300 MB is OVER-MEM)")(setup_long_header)
+served("view-slow", "POST /api/animation of 600 s at 1000 fps", "POST", "/api/animation",
+       {"keys": [{"time": 0, "params": [0, 0, 0]}, {"time": 600, "params": [10, 0, 0]}], "fps": 1000},
+       timeout=12.0)
+
+# -- yaml-alias: a billion laughs in an OpenCV FileStorage file -----------------------------
+
+
+def setup_yaml_alias(d):
+    y = Path(d) / "cam0.yml"
+    lines = ["%YAML:1.0", "---", "a0: &a0 [" + ", ".join(["1.0"] * 10) + "]"]
+    lines += [f"a{k}: &a{k} [" + ", ".join([f"*a{k - 1}"] * 10) + "]" for k in range(1, 12)]
+    y.write_text("\n".join(lines) + "\n")
+    return ["import", "cameras", str(Path(d) / "cap"), str(y)], size(y)
+
+
+probe("yaml-alias", "12 levels of 10 aliases each (10^12 numbers expanded)")(setup_yaml_alias)
+
+# -- colmap-many, colmap-points: COLMAP models -----------------------------------------------
+COLMAP = ROOT / "fixtures" / "calib" / "colmap"
+
+
+def colmap_images():
+    """The fixture's image lines (without their POINTS2D lines), and camera 1's pose."""
+    lines = [x for x in (COLMAP / "images.txt").read_text().splitlines() if x and not x.startswith("#")]
+    images = [x for x in lines if x.endswith(".png")]
+    return images, " ".join(images[0].split()[1:8])
+
+
+def setup_colmap_many(d):
+    m = Path(d) / "model"
+    m.mkdir()
+    shutil.copy(COLMAP / "cameras.txt", m / "cameras.txt")
+    _, pose1 = colmap_images()
+    with open(m / "images.txt", "w") as f:
+        for i in range(20000):
+            f.write(f"{i + 1} {pose1} 1 c{i}/000000.png\n\n")
+    return ["import", "cameras", str(Path(d) / "cap"), str(m)], size(m / "images.txt")
+
+
+def setup_colmap_points(d):
+    m = Path(d) / "model"
+    m.mkdir()
+    shutil.copy(COLMAP / "cameras.txt", m / "cameras.txt")
+    images, pose1 = colmap_images()
+    images.append(f"4 {pose1} 1 cam3/000000.png")
+    (m / "images.txt").write_text("\n".join(images) + "\n")
+    return ["import", "cameras", str(Path(d) / "cap"), str(m)], size(m / "images.txt")
+
+
+probe("colmap-many", "images.txt with 20000 images (cameras c0..c19999) of one camera")(setup_colmap_many)
+probe("colmap-points", "images.txt without its POINTS2D lines (4 images)")(setup_colmap_points)
+
+# -- video-names: video file names ffmpeg would read as options ------------------------------
+
+
+def no_ffmpeg():
+    return None if shutil.which("ffmpeg") else "ffmpeg is not on PATH"
+
+
+def tiny_video():
+    if "video" not in _CACHE:
+        keep = Path(tempfile.mkdtemp(prefix="jawtrack-probes-video-"))
+        atexit.register(shutil.rmtree, keep, True)
+        subprocess.run(["ffmpeg", "-nostdin", "-loglevel", "error", "-y", "-f", "lavfi", "-i",
+                        "testsrc=size=64x48:rate=24:duration=0.5", "-c:v", "libx264", "-pix_fmt", "yuv420p",
+                        "-f", "mp4", "./-i"], cwd=keep, capture_output=True, check=True)
+        _CACHE["video"] = keep / "-i"
+    return _CACHE["video"]
+
+
+def video_in(d, name="-i"):
+    shutil.copy(tiny_video(), Path(d) / name)
+
+
+def pngs(d):
+    return len(list((Path(d) / "cap" / "images" / "cam0").glob("*.png")))
+
+
+def logs(d):
+    return sorted(p.name for p in Path(d).glob("*.log"))
+
+
+def twelve_frames(rc, stderr, d):
+    # A file named -i is a fine video: refusing it, or writing other than its 12 frames, is WRONG.
+    return None if rc == 0 and pngs(d) == 12 and not logs(d) else "WRONG"
+
+
+def no_report(rc, stderr, d):
+    return "WRONG" if logs(d) else None
+
+
+def no_images(rc, stderr, d):
+    return "WRONG" if (Path(d) / "cap" / "images").exists() else None
+
+
+def nothing_written(rc, stderr, d):
+    return None if sorted(os.listdir(d)) == ["-i"] else "WRONG"
+
+
+def setup_video(d, *args, name="-i"):
+    video_in(d, name)
+    return ["import", "video", "cap", *args], 0
+
+
+probe("video-names", "cam0=-i (a video named -i), 12 frames", expect="any", check=twelve_frames,
+      needs=no_ffmpeg)(lambda d: setup_video(d, "cam0=-i"))
+probe("video-names", "cam0=-report (no ffmpeg report written)", expect="any", check=no_report,
+      needs=no_ffmpeg)(lambda d: setup_video(d, "cam0=-report", name="-report"))
+probe("video-names", "--first 18446744073709551615", check=no_images,
+      needs=no_ffmpeg)(lambda d: setup_video(d, "cam0=-i", "--first", "18446744073709551615"))
+probe("video-names", "cam0=-i cam0=-i (two videos for one camera)", check=nothing_written,
+      needs=no_ffmpeg)(lambda d: setup_video(d, "cam0=-i", "cam0=-i"))
+
+# -- overwrite: export onto its own inputs ---------------------------------------------------
+BEFORE = {}
+
+
+def unchanged(rel):
+    def check(rc, stderr, d):
+        return None if digest(Path(d) / rel) == BEFORE.get((d, rel)) else "WRONG"
+    return check
+
+
+def setup_overwrite(d, flag, rel, spelled=None):
+    # Without the `jaw` fields the export would run (the control of accepted-silently), so
+    # only the output's check can stop it.
+    c = synthetic_copy(d)
+    edit_json(c / "gt/poses.json", without_jaw)
+    BEFORE[(d, rel)] = digest(Path(d) / rel)
+    return ["export", str(c), str(c / "gt/poses.json"), flag, spelled or str(Path(d) / rel)], 0
+
+
+probe("overwrite", "export --gltf the capture's meshes/upper.obj", check=unchanged("cap/meshes/upper.obj"))(
+    lambda d: setup_overwrite(d, "--gltf", "cap/meshes/upper.obj"))
+probe("overwrite", "export --gltf cap/./meshes/../meshes/upper.obj (another spelling)",
+      check=unchanged("cap/meshes/upper.obj"))(
+    lambda d: setup_overwrite(d, "--gltf", "cap/meshes/upper.obj", f"{d}/cap/./meshes/../meshes/upper.obj"))
+probe("overwrite", "export --csv the tracks it reads (gt/poses.json)", check=unchanged("cap/gt/poses.json"))(
+    lambda d: setup_overwrite(d, "--csv", "cap/gt/poses.json"))
+probe("overwrite", "export --csv the capture's capture.json", check=unchanged("cap/capture.json"))(
+    lambda d: setup_overwrite(d, "--csv", "cap/capture.json"))
+
+
+def setup_same_out(d):
+    c = synthetic_copy(d)
+    x = str(Path(d) / "x.out")
+    return ["export", str(c), str(c / "gt/poses.json"), "--csv", x, "--gltf", x], 0
+
+
+probe("overwrite", "export --csv X --gltf X")(setup_same_out)
+
+# -- accepted-silently: wrong numbers that pass -----------------------------------------------
+for field, value in (("fx", 1e-300), ("fy", 1e-300), ("distortion", [1e308, 0, 0, 0, 0])):
+    def setup(d, field=field, value=value):
+        c = capture(d)
+        edit_json(c / "cameras/left.json", lambda v: v.__setitem__(field, value))
+        return ["validate", str(c)], 0
+    probe("accepted-silently", f"camera {field} = {json.dumps(value)}")(setup)
+
+
+def setup_tracks(d, edit):
+    t = Path(d) / "tracks.json"
+    edit_json(shutil.copy(synthetic()[0] / "gt/poses.json", t), edit)
+    return ["export", str(synthetic()[0]), str(t), "--csv", str(Path(d) / "out.csv")], 0
+
+
+def frame0_twice(v, keep_jaw):
+    if not keep_jaw:
+        without_jaw(v)
+    v["frames"].insert(1, json.loads(json.dumps(v["frames"][0])))
+
+
+# The control: synth's own ground truth must export, or the probes below are refused for
+# another reason (the jaw check's rotation angle, an unclamped acos, is NaN for two rotations a
+# rounding apart).
+probe("accepted-silently", "control: export synth's own gt/poses.json (must run)", expect="any",
+      check=lambda rc, e, d: None if rc == 0 else "WRONG")(lambda d: setup_tracks(d, lambda v: None))
+probe("accepted-silently", "export: tracks with frame 0 twice")(lambda d: setup_tracks(d, lambda v: frame0_twice(v, True)))
+probe("accepted-silently", "export: tracks with frame 0 twice (no jaw fields: the duplicate alone)",
+      check=says("twice"))(lambda d: setup_tracks(d, lambda v: frame0_twice(v, False)))
+probe("accepted-silently", "export: frames[0].jaw translation [500, 0, 0] (not lower against upper)")(
+    lambda d: setup_tracks(d, lambda v: v["frames"][0]["jaw"].__setitem__("translation", [500, 0, 0])))
+
+# -- messages: what the user is told ----------------------------------------------------------
+
+
+def setup_rvec(d, rvec):
+    y = Path(d) / "cam0.yml"
+    text = (ROOT / "fixtures/calib/opencv4/cam0.yml").read_text()
+    text, k = re.subn(r"(?ms)^R: !!opencv-matrix.*?(?=^T:)", f"rvec: {rvec}\n", text)
+    assert k == 1, "cam0.yml has no R matrix before T"
+    y.write_text(text)
+    return ["import", "cameras", str(Path(d) / "cap"), str(y)], 0
+
+
+probe("messages", "rvec [1e308, 0., 0.] in place of R: no NaN in the message",
+      check=lambda rc, e, d: "WRONG" if "nan" in e.lower() else None)(
+    lambda d: setup_rvec(d, "[1e308, 0., 0.]"))
+
+
 def main():
     global BINARY
     ap = argparse.ArgumentParser()
@@ -560,30 +1110,45 @@ def main():
     subprocess.run([BINARY, "synth", f"{keep.name}/s", "--frames", "2"], capture_output=True, check=True)
     MANDIBLE = Path(keep.name) / "s" / "meshes" / "mandible.obj"
     rows = []
+    skipped = set()
     for p in PROBES:
         if a.only and a.only != p.cls:
             continue
+        why = p.needs() if p.needs else None
+        if why:
+            if p.cls not in skipped:
+                print(f"-- skipped [{p.cls}]: {why}", flush=True)
+                skipped.add(p.cls)
+            continue
         with tempfile.TemporaryDirectory() as d:
             try:
-                argv, n = p.setup(d)
-            except subprocess.CalledProcessError as e:
-                rows.append(dict(cls=p.cls, name=p.name, outcome="SETUP-FAILED", detail=str(e)))
+                if p.direct:
+                    started = time.time()
+                    outcome, rc, stderr, rss, n = p.setup(d)
+                    secs = time.time() - started
+                else:
+                    argv, n = p.setup(d)
+            except (subprocess.CalledProcessError, SetupFailed) as e:
+                detail = str(e) + (f": {e.stderr[-300:]!r}" if getattr(e, "stderr", None) else "")
+                rows.append(dict(cls=p.cls, name=p.name, outcome="SETUP-FAILED", detail=detail))
+                print(f"!! SETUP-FAILED [{p.cls}] {p.name}: {detail[:300]}", flush=True)
                 continue
-            crash, rc, stderr, rss, secs = run([BINARY, *argv], d)
-            if rc == 2 and "unexpected argument '--allow-outside'" in stderr:
-                # A jawtrack from before the flag read such paths anyway: probe it without.
-                argv = [x for x in argv if x != "--allow-outside"]
+            if not p.direct:
                 crash, rc, stderr, rss, secs = run([BINARY, *argv], d)
-            if crash:
-                outcome = crash
-            elif rc == 0:
-                outcome = "ran" if p.expect == "any" else "ACCEPTED"
-            else:
-                outcome = "rejected"
-                if rss > 2 * n + (100 << 20):
-                    outcome = "OVER-MEM"
-            if p.check and crash is None:
-                outcome = p.check(rc, stderr, d) or outcome
+                if rc == 2 and "unexpected argument '--allow-outside'" in stderr:
+                    # A jawtrack from before the flag read such paths anyway: probe it without.
+                    argv = [x for x in argv if x != "--allow-outside"]
+                    crash, rc, stderr, rss, secs = run([BINARY, *argv], d)
+                if crash:
+                    outcome = crash
+                elif rc == 0:
+                    outcome = "ran" if p.expect == "any" else "ACCEPTED"
+                else:
+                    outcome = "rejected"
+                    if rss > 2 * n + (100 << 20):
+                        outcome = "OVER-MEM"
+                if p.check and crash is None:
+                    outcome = p.check(rc, stderr, d) or outcome
             lines = stderr.strip().splitlines()
             errors = [line for line in lines if line.startswith("error")]
             last = (errors or lines or [""])[-1][:400]

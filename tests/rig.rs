@@ -205,8 +205,26 @@ fn ik_reaches_a_reachable_target_quickly() {
     let point = f.metric.probes()[0];
     let goal = f.rig.clamp(&[0.15, 0.03, 0.0]);
     let target = f.rig.pose(&goal).transform_point(&point);
-    let r = jawtrack::rig::ik::solve(&f.rig, &point, &target, &[0.0; 3], &Default::default());
+    let r =
+        jawtrack::rig::ik::solve(&f.rig, &point, &target, &[0.0; 3], &Default::default()).unwrap();
     assert!(r.residual_mm < 0.05, "{r:?}");
+    // Targets beyond reach and starts that are not numbers are refused, not solved into NaN.
+    let far = nalgebra::Vector3::new(1e308, 0.0, 0.0);
+    let e = jawtrack::rig::ik::solve(&f.rig, &point, &far, &[0.0; 3], &Default::default());
+    assert_eq!(
+        e.unwrap_err(),
+        jawtrack::rig::ik::IkError::Coordinate("target")
+    );
+    let e = jawtrack::rig::ik::solve(&f.rig, &point, &target, &[f64::NAN; 3], &Default::default());
+    assert_eq!(e.unwrap_err(), jawtrack::rig::ik::IkError::Start);
+    // The ranges' projection gives a valid, finite vector for any input.
+    for d in [[f64::NAN; 3], [f64::INFINITY, f64::NEG_INFINITY, 1e308]] {
+        let c = f.rig.clamp(&d);
+        assert!(
+            c.iter().all(|v| v.is_finite()) && f.rig.is_valid(&c),
+            "{d:?} -> {c:?}"
+        );
+    }
     assert!(f.rig.is_valid(&r.params));
 }
 

@@ -16,6 +16,11 @@ pub fn read_camera(path: &Path, name: &str) -> Result<Camera> {
 const MIN_SIDE: i64 = 8;
 /// The longest focal length (pixels): a 1000 mm lens on a 1 µm pixel.
 const MAX_FOCAL_PX: f64 = 1e6;
+/// The shortest (pixels): below a pixel, the whole sphere of view fits in one pixel.
+const MIN_FOCAL_PX: f64 = 1.0;
+/// The largest distortion coefficient: OpenCV's calibrations, rational and fisheye models
+/// included, stay within a few hundred; far beyond, the lens overflows single precision.
+pub const MAX_DISTORTION: f64 = 1e4;
 
 /// Validate a camera document (`path` names it in errors) and build the camera.
 pub fn camera_from_json(cj: &CameraJson, path: &Path, name: &str) -> Result<Camera> {
@@ -38,6 +43,16 @@ pub fn camera_from_json(cj: &CameraJson, path: &Path, name: &str) -> Result<Came
                 path,
                 field,
                 format!("the focal length must be positive, found {}", Shown(v)),
+            ));
+        }
+        if v < MIN_FOCAL_PX {
+            return Err(Error::invalid(
+                path,
+                field,
+                format!(
+                    "a focal length of {} px is below {MIN_FOCAL_PX} px: not a camera",
+                    Shown(v)
+                ),
             ));
         }
         if v > MAX_FOCAL_PX {
@@ -80,6 +95,16 @@ pub fn camera_from_json(cj: &CameraJson, path: &Path, name: &str) -> Result<Came
     let distortion = match &cj.distortion {
         Some(d) => {
             check_finite(path, "distortion", d)?;
+            if let Some((i, v)) = d.iter().enumerate().find(|(_, v)| v.abs() > MAX_DISTORTION) {
+                return Err(Error::invalid(
+                    path,
+                    &format!("distortion[{i}]"),
+                    format!(
+                        "{} is beyond ±{MAX_DISTORTION}: no lens OpenCV calibrates has such a coefficient",
+                        Shown(*v)
+                    ),
+                ));
+            }
             Distortion::from_coefficients(d, fisheye)
                 .map_err(|problem| Error::invalid(path, "distortion", problem))?
         }

@@ -23,7 +23,9 @@ pub use camera::{camera_from_json, read_camera};
 use json::{ArchInitJson, BoiJson, CaptureJson, InitJson, TracksJson, check_finite, read_json};
 pub use masks::{LOWER_BIT, LabelMask, MaskMode, UPPER_BIT};
 pub use mesh::{BoiSource, Mesh, Simplify};
-pub use write::{check_replaceable, encode_png, write_atomic, write_json_atomic};
+pub use write::{
+    Reads, check_outputs, check_replaceable, encode_png, resolved, write_atomic, write_json_atomic,
+};
 
 /// A camera of the capture with what was found of its masks.
 #[derive(Debug)]
@@ -152,6 +154,26 @@ impl Default for OpenOptions {
 }
 
 impl Capture {
+    /// What any command that opens this capture reads, for [`check_outputs`]: capture.json,
+    /// init.json, the spec's folders (cameras, meshes, masks, images, gt) and scans kept at
+    /// the folder's top.
+    pub fn reads(&self) -> (Vec<PathBuf>, Vec<PathBuf>) {
+        let mut files = vec![self.dir.join("capture.json"), self.dir.join("init.json")];
+        if let Ok(entries) = std::fs::read_dir(&self.dir) {
+            files.extend(entries.flatten().map(|e| e.path()).filter(|p| {
+                p.extension()
+                    .and_then(|e| e.to_str())
+                    .is_some_and(|e| mesh::EXTENSIONS.contains(&e.to_ascii_lowercase().as_str()))
+            }));
+        }
+        let mut folders: Vec<PathBuf> = ["cameras", "meshes", "masks", "images", "gt"]
+            .iter()
+            .map(|d| self.dir.join(d))
+            .collect();
+        folders.push(self.mask_dir.clone());
+        (files, folders)
+    }
+
     pub fn open(dir: &Path) -> Result<Capture> {
         Self::open_with(dir, OpenOptions::default())
     }

@@ -72,3 +72,64 @@ pub fn encode_png(
     .expect("a buffer of the stated size encodes into memory");
     out
 }
+
+/// Where `path` points: its canonical form, or, where it does not exist yet, its parent's
+/// with its name (so that `a/../b.json` and `b.json` are one file).
+pub fn resolved(path: &Path) -> std::path::PathBuf {
+    if let Ok(p) = std::fs::canonicalize(path) {
+        return p;
+    }
+    let parent = match path.parent() {
+        Some(d) if !d.as_os_str().is_empty() => d,
+        _ => Path::new("."),
+    };
+    match (std::fs::canonicalize(parent), path.file_name()) {
+        (Ok(d), Some(name)) => d.join(name),
+        _ => std::path::absolute(path).unwrap_or_else(|_| path.to_path_buf()),
+    }
+}
+
+/// What a command reads, for [`check_outputs`]: files, and folders whose every file it reads.
+#[derive(Debug, Default)]
+pub struct Reads<'a> {
+    pub files: Vec<&'a Path>,
+    pub folders: Vec<&'a Path>,
+}
+
+/// Refuse an output that is a file the command reads, lies in a folder it reads, or is another
+/// of its outputs: writing it would destroy what the user made.
+pub fn check_outputs(reads: &Reads, outputs: &[&Path]) -> Result<()> {
+    let files: Vec<_> = reads.files.iter().map(|p| (resolved(p), *p)).collect();
+    let folders: Vec<_> = reads.folders.iter().map(|p| (resolved(p), *p)).collect();
+    for (i, out) in outputs.iter().enumerate() {
+        let at = resolved(out);
+        if let Some((_, input)) = files.iter().find(|(f, _)| *f == at) {
+            return Err(Error::invalid(
+                out,
+                "output",
+                format!(
+                    "is {}, which this command reads: write the output elsewhere",
+                    input.display()
+                ),
+            ));
+        }
+        if let Some((_, dir)) = folders.iter().find(|(d, _)| at.starts_with(d)) {
+            return Err(Error::invalid(
+                out,
+                "output",
+                format!(
+                    "lies in {}, whose files this command reads: write the output elsewhere",
+                    dir.display()
+                ),
+            ));
+        }
+        if outputs[..i].iter().any(|o| resolved(o) == at) {
+            return Err(Error::invalid(
+                out,
+                "output",
+                "is given twice: each output needs its own file",
+            ));
+        }
+    }
+    Ok(())
+}

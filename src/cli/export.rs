@@ -1,6 +1,6 @@
 //! `jawtrack export`: tracked motion out, as glTF for Blender and Maya and CSV for analysis.
 
-use std::path::PathBuf;
+use std::path::{Path, PathBuf};
 
 use anyhow::{Context, bail};
 use jawtrack::anatomy::motion::MotionFrame;
@@ -33,27 +33,73 @@ pub struct Args {
     pub rest_frame: Option<u32>,
 }
 
+/// The farthest the lower arch's frame may lie from the upper's (mm): the jaw opens a few
+/// centimetres.
+const MAX_JAW_MM: f64 = 200.0;
+
 pub fn run(a: Args) -> anyhow::Result<()> {
     if a.gltf.is_none() && a.csv.is_none() {
         bail!("nothing to write: give --gltf OUT.gltf and/or --csv OUT.csv");
     }
     let capture = Capture::open(&a.capture).context("opening the capture")?;
+    let (files, folders) = capture.reads();
+    let mut reads = jawtrack::capture::Reads {
+        files: files.iter().map(PathBuf::as_path).collect(),
+        folders: folders.iter().map(PathBuf::as_path).collect(),
+    };
+    reads.files.push(&a.tracks);
+    let outputs: Vec<&Path> = a.gltf.iter().chain(&a.csv).map(PathBuf::as_path).collect();
+    jawtrack::capture::check_outputs(&reads, &outputs)?;
     let tracks: TracksJson = read_json(&a.tracks, "tracks file")?;
     let mut frames: Vec<(u32, Status, Pose)> = Vec::new();
     for f in &tracks.frames {
         if f.status() == Status::NoData {
             continue;
         }
-        let jaw = match &f.jaw {
-            Some(j) => j.to_pose(&a.tracks, &format!("frame {}.jaw", f.frame))?,
-            None => {
-                let p = f.poses(&a.tracks)?;
-                jaw_pose(&p.upper, &p.lower)
+        let p = f.poses(&a.tracks)?;
+        let jaw = jaw_pose(&p.upper, &p.lower);
+        // The record's `jaw` is derived from its poses: one that disagrees was edited apart.
+        if let Some(j) = &f.jaw {
+            let stated = j.to_pose(&a.tracks, &format!("frame {}.jaw", f.frame))?;
+            // Within what another program's rounding of the two may leave.
+            let moved_mm = (stated.translation - jaw.translation).norm();
+            let turned = (stated.rotation.matrix() - jaw.rotation.matrix()).amax();
+            if !(moved_mm.is_finite() && moved_mm < 0.01 && turned < 1e-4) {
+                bail!(
+                    "{}: frame {}: `jaw` disagrees with the arches' poses (lower relative to upper): remove it or correct it",
+                    a.tracks.display(),
+                    f.frame
+                );
             }
-        };
+        }
+        if !jaw.translation.norm().is_finite() || jaw.translation.norm() > MAX_JAW_MM {
+            bail!(
+                "{}: frame {}: the lower arch lies {:.0} mm from the upper: no jaw opens that far (at most {MAX_JAW_MM} mm)",
+                a.tracks.display(),
+                f.frame,
+                jaw.translation.norm()
+            );
+        }
+        let last = capture.first_frame as u64 + capture.frame_count as u64;
+        if (f.frame as u64) < capture.first_frame as u64 || f.frame as u64 >= last {
+            bail!(
+                "{}: frame {}: the capture has frames {} to {}",
+                a.tracks.display(),
+                f.frame,
+                capture.first_frame,
+                last.saturating_sub(1)
+            );
+        }
         frames.push((f.frame, f.status(), jaw));
     }
     frames.sort_by_key(|f| f.0);
+    if let Some(w) = frames.windows(2).find(|w| w[0].0 == w[1].0) {
+        bail!(
+            "{}: frame {} is listed twice (glTF key times must increase)",
+            a.tracks.display(),
+            w[0].0
+        );
+    }
     if frames.is_empty() {
         bail!("{}: no frame with a pose (all no-data)", a.tracks.display());
     }

@@ -163,6 +163,9 @@ fn is_colmap(path: &Path) -> bool {
         )
 }
 
+/// Every pair's distance is printed for up to this many cameras; beyond, the closest and widest.
+const SHOWN_PAIRS_UP_TO: usize = 6;
+
 fn cameras(a: CamerasArgs) -> anyhow::Result<()> {
     let options = ImportOptions {
         unit: match a.unit {
@@ -190,6 +193,13 @@ fn cameras(a: CamerasArgs) -> anyhow::Result<()> {
             cams.push(calib::read_opencv(file, &name, &options)?);
         }
     }
+    if cams.len() > calib::MAX_CAMERAS {
+        bail!(
+            "{} cameras: at most {} in one capture (a capture films the teeth with a few)",
+            cams.len(),
+            calib::MAX_CAMERAS
+        );
+    }
     let written = calib::write_cameras(&a.capture, &cams).context("writing the cameras")?;
     for (c, path) in cams.iter().zip(&written) {
         let (o, d) = (c.centre(), c.view_direction());
@@ -213,8 +223,29 @@ fn cameras(a: CamerasArgs) -> anyhow::Result<()> {
         }
     }
     let baselines = calib::baselines(&cams);
-    for &(i, j, dist) in &baselines {
-        println!("distance {} - {}: {dist:.1} mm", cams[i].name, cams[j].name);
+    if cams.len() <= SHOWN_PAIRS_UP_TO {
+        for &(i, j, dist) in &baselines {
+            println!("distance {} - {}: {dist:.1} mm", cams[i].name, cams[j].name);
+        }
+    } else {
+        let by = |f: fn(f64, f64) -> bool| {
+            baselines
+                .iter()
+                .copied()
+                .reduce(|a, b| if f(b.2, a.2) { b } else { a })
+        };
+        if let (Some(near), Some(far)) = (by(|a, b| a < b), by(|a, b| a > b)) {
+            println!(
+                "distances between {} cameras: closest {} - {} {:.1} mm, widest {} - {} {:.1} mm",
+                cams.len(),
+                cams[near.0].name,
+                cams[near.1].name,
+                near.2,
+                cams[far.0].name,
+                cams[far.1].name,
+                far.2
+            );
+        }
     }
     // Cameras filming teeth from about 20 cm stand centimetres to a metre apart.
     let widest = baselines.iter().map(|b| b.2).fold(0.0, f64::max);
@@ -237,6 +268,9 @@ fn videos(a: VideoArgs) -> anyhow::Result<()> {
             bail!("{arg}: give each video as NAME=FILE (the camera's name, then its video)");
         };
         calib::check_name(name, file)?;
+        if jobs.iter().any(|(n, _)| n == name) {
+            bail!("{arg}: camera `{name}` is given two videos; give each camera one");
+        }
         jobs.push((name.to_string(), file.to_path_buf()));
     }
     let options = Extract {

@@ -122,6 +122,18 @@ fn model_and_face(model: &Path, face: &Path) -> anyhow::Result<(SkinModel, Subje
     Ok((m, s))
 }
 
+/// `out` may replace neither a file the command reads nor anything in a face folder (its
+/// jaw.json is the ground truth).
+fn guard(out: &Path, files: &[&Path], faces: &[&Path]) -> anyhow::Result<()> {
+    jawtrack::capture::check_replaceable(out)?;
+    let reads = jawtrack::capture::Reads {
+        files: files.to_vec(),
+        folders: faces.to_vec(),
+    };
+    jawtrack::capture::check_outputs(&reads, &[out])?;
+    Ok(())
+}
+
 pub fn run(c: Command) -> anyhow::Result<()> {
     match c {
         Command::Learn {
@@ -131,7 +143,8 @@ pub fn run(c: Command) -> anyhow::Result<()> {
             settings,
         } => {
             let settings = settings.read()?;
-            jawtrack::capture::check_replaceable(&out)?;
+            let folders: Vec<&Path> = faces.iter().map(PathBuf::as_path).collect();
+            guard(&out, &[], &folders)?;
             let subjects = faces
                 .iter()
                 .map(|d| load(d))
@@ -170,7 +183,7 @@ pub fn run(c: Command) -> anyhow::Result<()> {
             settings,
         } => {
             let settings = settings.read()?;
-            jawtrack::capture::check_replaceable(&out)?;
+            guard(&out, &[&model], &[&face])?;
             let (m, target) = model_and_face(&model, &face)?;
             let (r, report) = retarget_to(&m, &target, &settings.retarget)?;
             write_json_atomic(&out, &r)?;
@@ -191,7 +204,7 @@ pub fn run(c: Command) -> anyhow::Result<()> {
             println!("wrote {}", out.display());
         }
         Command::Predict { model, face, out } => {
-            jawtrack::capture::check_replaceable(&out)?;
+            guard(&out, &[&model], &[&face])?;
             let (m, s) = model_and_face(&model, &face)?;
             let clock = Instant::now();
             let poses: Vec<_> = (0..s.frames.len())
@@ -241,7 +254,7 @@ pub fn run(c: Command) -> anyhow::Result<()> {
             settings,
         } => {
             let settings = settings.read()?;
-            jawtrack::capture::check_replaceable(&out)?;
+            guard(&out, &[&model, &tracks], &[&face])?;
             let (m, s) = model_and_face(&model, &face)?;
             let t: jawtrack::capture::json::TracksJson =
                 jawtrack::capture::json::read_json(&tracks, "tracks")?;

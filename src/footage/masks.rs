@@ -138,6 +138,16 @@ fn open_image(path: &Path) -> Result<image::DynamicImage> {
     })
 }
 
+/// An object mask's pixels that belong to the object: any value but 0 in any colour channel
+/// (a 16-bit mask of 0/1 too, which 8 bits would round to 0), where the pixel is not fully
+/// transparent.
+fn object_pixels(img: &image::DynamicImage) -> Vec<bool> {
+    img.to_rgba16()
+        .pixels()
+        .map(|p| p.0[3] != 0 && (p.0[0] | p.0[1] | p.0[2]) != 0)
+        .collect()
+}
+
 /// The CVAT label map: name → colour.
 fn read_labelmap(path: &Path) -> Result<BTreeMap<String, [u8; 3]>> {
     let text = read_text(path, "CVAT label map")?;
@@ -170,6 +180,22 @@ fn read_labelmap(path: &Path) -> Result<BTreeMap<String, [u8; 3]>> {
                 format!("`{colour}` is not r,g,b"),
             ));
         };
+        if out.contains_key(name) {
+            return Err(Error::invalid(
+                path,
+                &field,
+                format!("label `{name}` is listed twice: each label once, with one colour"),
+            ));
+        }
+        if let Some((other, _)) = out.iter().find(|(_, c)| **c == [r, g, b]) {
+            return Err(Error::invalid(
+                path,
+                &field,
+                format!(
+                    "`{name}` has the colour of `{other}` ({r},{g},{b}): the pixels could not be told apart"
+                ),
+            ));
+        }
         out.insert(name.to_string(), [r, g, b]);
     }
     Ok(out)
@@ -323,9 +349,8 @@ pub fn import_masks(
             let (w, h) = (img.width(), img.height());
             match &colours {
                 None => {
-                    let grey = img.into_luma8();
-                    let raw = grey.as_raw();
-                    paint(path, w, h, &|i| (raw[i] != 0).then_some(*class))?;
+                    let on = object_pixels(&img);
+                    paint(path, w, h, &|i| on[i].then_some(*class))?;
                 }
                 Some(colours) => {
                     let rgb = img.into_rgb8();

@@ -85,6 +85,21 @@ struct ProbeStream {
     nb_frames: Option<String>,
 }
 
+/// `path` as ffmpeg must read it: `file:` and the absolute path, so that a name such as
+/// `-report` is not taken as an option, nor `concat:a.mp4` as a protocol.
+fn input_url(path: &Path) -> Result<std::ffi::OsString> {
+    let absolute = std::path::absolute(path).map_err(|error| Error::Read {
+        path: path.to_path_buf(),
+        error,
+    })?;
+    let mut url = std::ffi::OsString::from("file:");
+    url.push(absolute.as_os_str());
+    Ok(url)
+}
+
+/// The highest frame number the capture's file names hold (`<frame:06>`).
+pub const MAX_FRAME: u64 = 999_999;
+
 /// Probe a video with ffprobe.
 pub fn probe(video: &Path) -> Result<VideoInfo> {
     if !video.is_file() {
@@ -94,11 +109,13 @@ pub fn probe(video: &Path) -> Result<VideoInfo> {
         });
     }
     let program = ffprobe_program();
+    let input = input_url(video)?;
     let out = Command::new(&program)
         .args(["-v", "error", "-select_streams", "v:0", "-show_entries"])
         .arg("stream=width,height,avg_frame_rate,nb_frames")
         .args(["-of", "json"])
-        .arg(video)
+        .arg("-i")
+        .arg(input)
         .stdin(Stdio::null())
         .output()
         .map_err(|e| spawn_error(&program, video, e))?;
@@ -200,6 +217,33 @@ pub fn extract(
             what: "video".into(),
         });
     }
+    if options.first > MAX_FRAME
+        || options
+            .count
+            .is_some_and(|n| n == 0 || n > MAX_FRAME + 1 - options.first)
+    {
+        return Err(Error::invalid(
+            video,
+            "--first/--count",
+            format!(
+                "frames {} on ({}): the capture's frame numbers run from 0 to {MAX_FRAME}",
+                options.first,
+                options
+                    .count
+                    .map_or("to the end".to_string(), |n| format!("{n} of them")),
+            ),
+        ));
+    }
+    if out
+        .symlink_metadata()
+        .is_ok_and(|m| m.file_type().is_symlink())
+    {
+        return Err(Error::invalid(
+            out,
+            "output",
+            "is a link: the frames are written into a folder of the capture itself; remove the link",
+        ));
+    }
     if out.exists() && !options.replace {
         return Err(Error::invalid(
             out,
@@ -219,11 +263,16 @@ pub fn extract(
         .map_err(|e| werr(parent, e))?;
 
     let program = ffmpeg_program();
+    let input = input_url(video)?;
+    // The stage's path is absolute, so it is never read as an option either.
+    let pattern = std::path::absolute(stage.path())
+        .map_err(|e| werr(stage.path(), e))?
+        .join(format!("%06d.{}", options.format.extension()));
     let mut cmd = Command::new(&program);
     cmd.args(["-nostdin", "-hide_banner", "-loglevel", "error", "-nostats"])
         .args(["-progress", "pipe:1"])
         .arg("-i")
-        .arg(video)
+        .arg(input)
         .args(["-map", "0:v:0"])
         .args(passthrough_args(&program));
     if options.first > 0 {
@@ -236,11 +285,7 @@ pub fn extract(
         cmd.args(["-q:v", "2"]);
     }
     cmd.args(["-start_number", &options.first.to_string(), "-f", "image2"])
-        .arg(
-            stage
-                .path()
-                .join(format!("%06d.{}", options.format.extension())),
-        )
+        .arg(pattern)
         .stdin(Stdio::null())
         .stdout(Stdio::piped())
         .stderr(Stdio::piped());
@@ -286,17 +331,22 @@ pub fn extract(
         ));
     }
     progress(written);
-    let staged = stage.keep();
+    // The stage is removed with `stage` if a rename fails; once renamed, it is the output.
     if out.exists() {
         let old = parent.join(format!(
             ".replaced-{}",
             out.file_name().unwrap_or_default().to_string_lossy()
         ));
         std::fs::rename(out, &old).map_err(|e| werr(out, e))?;
-        std::fs::rename(&staged, out).map_err(|e| werr(out, e))?;
+        if let Err(e) = std::fs::rename(stage.path(), out) {
+            // Put the frames that were there back.
+            let _ = std::fs::rename(&old, out);
+            return Err(werr(out, e));
+        }
         std::fs::remove_dir_all(&old).map_err(|e| werr(&old, e))?;
     } else {
-        std::fs::rename(&staged, out).map_err(|e| werr(out, e))?;
+        std::fs::rename(stage.path(), out).map_err(|e| werr(out, e))?;
     }
+    let _ = stage.keep();
     Ok(written)
 }

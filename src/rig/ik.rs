@@ -34,6 +34,19 @@ impl Default for IkSettings {
     }
 }
 
+/// A point or target this far from the origin (mm) is no question IK answers: the jaw is a
+/// few centimetres across.
+pub const MAX_COORDINATE_MM: f64 = 1e4;
+
+/// A question IK refuses.
+#[derive(Debug, Clone, thiserror::Error, PartialEq)]
+pub enum IkError {
+    #[error("the {0}: three finite numbers, each within ±{MAX_COORDINATE_MM} mm")]
+    Coordinate(&'static str),
+    #[error("the starting parameters: three finite numbers")]
+    Start,
+}
+
 #[derive(Debug, Clone, Serialize)]
 pub struct IkResult {
     pub params: [f64; 3],
@@ -50,7 +63,20 @@ pub fn solve<R: ThreeParameterRig + ?Sized>(
     target: &Vector3<f64>,
     from: &[f64; 3],
     s: &IkSettings,
-) -> IkResult {
+) -> Result<IkResult, IkError> {
+    let bounded = |v: &Vector3<f64>| {
+        v.iter()
+            .all(|c| c.is_finite() && c.abs() <= MAX_COORDINATE_MM)
+    };
+    if !bounded(point) {
+        return Err(IkError::Coordinate("point"));
+    }
+    if !bounded(target) {
+        return Err(IkError::Coordinate("target"));
+    }
+    if from.iter().any(|v| !v.is_finite()) {
+        return Err(IkError::Start);
+    }
     let moved = |d: &[f64; 3]| rig.pose(d).transform_point(point);
     let distance = |d: &[f64; 3]| (moved(d) - target).norm();
     let (mut best, mut evaluations) = levenberg_marquardt(rig, &moved, target, from, s);
@@ -97,11 +123,11 @@ pub fn solve<R: ThreeParameterRig + ?Sized>(
             step *= 0.5;
         }
     }
-    IkResult {
+    Ok(IkResult {
         params: best,
         residual_mm: best_e,
         evaluations,
-    }
+    })
 }
 
 /// The local search's first step after Levenberg-Marquardt, as a share of `IkSettings::step`:
@@ -142,7 +168,12 @@ fn levenberg_marquardt<R: ThreeParameterRig + ?Sized>(
                 continue;
             };
             let step = inv * g;
-            let trial = rig.clamp(&std::array::from_fn(|k| d[k] - step[k]));
+            let trial: [f64; 3] = std::array::from_fn(|k| d[k] - step[k]);
+            if trial.iter().any(|v| !v.is_finite()) {
+                mu *= 4.0;
+                continue;
+            }
+            let trial = rig.clamp(&trial);
             let rt = moved(&trial) - target;
             evaluations += 1;
             if rt.norm() < r.norm() {

@@ -178,7 +178,8 @@ const PATH_BAND: f64 = 0.1;
 fn nearest_in(intervals: &[[f64; 2]], y: f64) -> f64 {
     intervals
         .iter()
-        .map(|[lo, hi]| y.clamp(*lo, *hi))
+        .filter(|[lo, hi]| lo <= hi)
+        .map(|[lo, hi]| y.max(*lo).min(*hi))
         .min_by(|a, b| (a - y).abs().total_cmp(&(b - y).abs()))
         .unwrap_or(y)
 }
@@ -253,12 +254,15 @@ impl Ranges {
         if self.is_valid(d) {
             return *d;
         }
+        // A parameter that is not a number is taken as 0 (the rest of a centred rig), so the
+        // answer is always a valid, finite vector.
+        let d = &d.map(|v| if v.is_nan() { 0.0 } else { v });
         let [lo, hi] = self.d1_range();
         let covered = |x: f64| {
             let (a, b) = self.at(x);
             !a.is_empty() && !b.is_empty()
         };
-        let mut d1 = d[0].clamp(lo, hi);
+        let mut d1 = d[0].max(lo).min(hi);
         if !covered(d1) {
             d1 = (0..=D1_SCAN)
                 .map(|i| lo + (hi - lo) * (i as f64 + 0.5) / (D1_SCAN as f64 + 1.0))

@@ -14,4 +14,4 @@ pub use scene::{
     AnimationQuery, IkQuery, IkReply, Meshes, Part, PoseQuery, PoseReply, Refused, SceneReply,
     Tracked, Viewer,
 };
-pub use server::serve;
+pub use server::{Limits, serve, serve_with};

@@ -61,13 +61,25 @@ impl Tracked {
 
 /// The page's questions are answered here.
 pub struct Viewer {
-    rig: Box<dyn ThreeParameterRig>,
+    rig: Box<dyn ThreeParameterRig + Send + Sync>,
     motion: MotionFrame,
     pub meshes: Meshes,
     tracked: Option<Tracked>,
     extent: Extent,
     rest: [f64; 3],
+    /// The largest |parameter| a query may start from: the training poses' span, widened.
+    param_bound: f64,
 }
+
+/// A point to move or a target farther than this from the jaw (mm) is no question the page asks.
+const MAX_TARGET_MM: f64 = 1e4;
+
+/// IK's answer counts as reached when the vertex ends this close to where it was dragged (mm):
+/// about what a drag on the page can place.
+const IK_REACHED_MM: f64 = 1.0;
+
+/// Frames one animation request may solve (an hour at 24 fps); each costs a rig solve.
+const MAX_ANIMATION_FRAMES: f64 = 86_400.0;
 
 /// The sliders' full travel: the training poses' span in animator units, widened by a
 /// quarter so poses beyond it can be tried (and shown out of range).
@@ -83,7 +95,8 @@ pub struct Extent {
 pub struct PoseReply {
     /// The network's parameters: internal, handed back as the next query's start.
     pub params: [f64; 3],
-    /// Whether the rig reached the animator values asked for (else `params` are the start's).
+    /// Whether the rig reached the animator values asked for (else `params` are the start's);
+    /// for IK, whether the vertex came within [`IK_REACHED_MM`] of its target.
     pub reached: bool,
     /// Inside the alpha-shape ranges learned from the training poses.
     pub valid: bool,
@@ -201,7 +214,7 @@ fn column_major(p: &Pose) -> [f64; 16] {
 impl Viewer {
     /// `rig_path` names the rig in errors. The rig must carry its jaw frame (animator units).
     pub fn new(
-        rig: Box<dyn ThreeParameterRig>,
+        rig: Box<dyn ThreeParameterRig + Send + Sync>,
         rig_path: &Path,
         meshes: Meshes,
         tracked: Option<Tracked>,
@@ -232,6 +245,13 @@ impl Viewer {
             lateral_mm: span(&|a| a.lateral_mm),
             protrusion_mm: span(&|a| a.protrusion_mm),
         };
+        let param_bound = 4.0
+            * rig
+                .spread()
+                .iter()
+                .chain([&rest])
+                .flatten()
+                .fold(1.0f64, |m, v| m.max(v.abs()));
         Ok(Viewer {
             rig,
             motion,
@@ -239,6 +259,7 @@ impl Viewer {
             tracked,
             extent,
             rest,
+            param_bound,
         })
     }
 
@@ -308,14 +329,30 @@ impl Viewer {
         if q.target.iter().any(|v| !v.is_finite() || v.abs() > 1e3) {
             return Err(Refused("target: three finite numbers, |v| ≤ 1000".into()));
         }
-        let from = q.from.unwrap_or(self.rest);
+        let from = self.start(q.from.as_ref())?.unwrap_or(self.rest);
         // Where the rig cannot reach the values, the pose it comes nearest to is shown.
         Ok(
             match nearest_animator(&*self.rig, &self.motion, &q.target, from) {
-                Some((d, miss)) => self.reply(d, miss < 1e-3),
-                None => self.reply(from, false),
+                Some((d, miss)) if d.iter().all(|v| v.is_finite()) => self.reply(d, miss < 1e-3),
+                _ => self.reply(from, false),
             },
         )
+    }
+
+    /// A query's starting parameters, checked: finite and within the rig's reach.
+    fn start(&self, from: Option<&[f64; 3]>) -> std::result::Result<Option<[f64; 3]>, Refused> {
+        match from {
+            Some(d)
+                if d.iter()
+                    .any(|v| !v.is_finite() || v.abs() > self.param_bound) =>
+            {
+                Err(Refused(format!(
+                    "from: three finite parameters within ±{:.3} (the rig's own, as a reply gave them)",
+                    self.param_bound
+                )))
+            }
+            other => Ok(other.copied()),
+        }
     }
 
     /// IK (Eq. 10): the valid parameters that bring the vertex closest to the target.
@@ -335,21 +372,28 @@ impl Viewer {
                 mesh.positions.len()
             ))
         })?;
-        if q.target.iter().chain(&q.from).any(|v| !v.is_finite()) {
-            return Err(Refused("target and from: finite numbers".into()));
+        if q.target
+            .iter()
+            .any(|v| !v.is_finite() || v.abs() > MAX_TARGET_MM)
+        {
+            return Err(Refused(format!(
+                "target: three finite numbers, |v| ≤ {MAX_TARGET_MM} mm"
+            )));
         }
+        let from = self.start(Some(&q.from))?.unwrap_or(self.rest);
         let point = Vector3::new(p[0] as f64, p[1] as f64, p[2] as f64);
         let started = Instant::now();
         let r = crate::rig::ik::solve(
             &*self.rig,
             &point,
             &Vector3::from(q.target),
-            &q.from,
+            &from,
             &Default::default(),
-        );
+        )
+        .map_err(|e| Refused(e.to_string()))?;
         let milliseconds = started.elapsed().as_secs_f64() * 1e3;
         Ok(IkReply {
-            pose: self.reply(r.params, true),
+            pose: self.reply(r.params, r.residual_mm <= IK_REACHED_MM),
             residual_mm: r.residual_mm,
             evaluations: r.evaluations,
             milliseconds,
@@ -361,8 +405,15 @@ impl Viewer {
         if !(q.fps.is_finite() && q.fps > 0.0 && q.fps <= 1000.0) {
             return Err(Refused("fps: above 0, at most 1000".into()));
         }
-        if q.keys.last().map_or(0.0, |k| k.time) - q.keys.first().map_or(0.0, |k| k.time) > 3600.0 {
+        let span = q.keys.last().map_or(0.0, |k| k.time) - q.keys.first().map_or(0.0, |k| k.time);
+        if span > 3600.0 {
             return Err(Refused("keys: at most an hour of animation".into()));
+        }
+        if span * q.fps > MAX_ANIMATION_FRAMES {
+            return Err(Refused(format!(
+                "keys and fps: {:.0} frames; at most {MAX_ANIMATION_FRAMES} a request",
+                span * q.fps
+            )));
         }
         let frames =
             animate_animator(&*self.rig, &q.keys, q.fps).map_err(|e| Refused(e.to_string()))?;

@@ -75,6 +75,9 @@ pub(crate) struct RawMesh {
     pub tags: Vec<String>,
 }
 
+/// The extensions of the mesh formats read (lower case).
+pub const EXTENSIONS: [&str; 3] = ["obj", "stl", "ply"];
+
 /// The file read by its extension's reader, and the extension (lower case). STL, which keeps
 /// no vertex order, only where `stl` allows it.
 fn read_raw(path: &Path, stl: bool) -> Result<(RawMesh, String)> {

@@ -284,7 +284,8 @@ pub fn ik(a: IkArgs) -> anyhow::Result<()> {
         &nalgebra::Vector3::from(a.target),
         &from,
         &Default::default(),
-    );
+    )
+    .context("rig ik")?;
     let milliseconds = started.elapsed().as_secs_f64() * 1e3;
     let report = IkReport {
         animator: animator_of(&rig, &result.params),

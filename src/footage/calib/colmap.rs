@@ -175,6 +175,31 @@ fn camera_name(image: &str) -> String {
     }
 }
 
+/// The most cameras one model may hold: a capture films the teeth with a few, and every pair's
+/// distance is checked.
+pub const MAX_CAMERAS: usize = 64;
+
+/// Whether `line` reads as an image line (IMAGE_ID, a unit quaternion, a translation, a known
+/// CAMERA_ID, a name) rather than as 2-D points (X Y POINT3D_ID triples).
+fn looks_like_an_image_line(line: &str, intrinsics: &BTreeMap<u64, Intrinsics>) -> bool {
+    let t: Vec<&str> = line.split_whitespace().collect();
+    if t.len() < 10 || t[0].parse::<u64>().is_err() {
+        return false;
+    }
+    let Ok(q) = t[1..5]
+        .iter()
+        .map(|s| s.parse::<f64>())
+        .collect::<std::result::Result<Vec<f64>, _>>()
+    else {
+        return false;
+    };
+    let norm = q.iter().map(|v| v * v).sum::<f64>().sqrt();
+    (norm - 1.0).abs() < 1e-3
+        && t[8]
+            .parse::<u64>()
+            .is_ok_and(|id| intrinsics.contains_key(&id))
+}
+
 fn read_images_txt(
     path: &Path,
     intrinsics: &BTreeMap<u64, Intrinsics>,
@@ -197,6 +222,17 @@ fn read_images_txt(
         if t.is_empty() {
             continue;
         }
+        if let Some(&(j, points)) = pair.get(1)
+            && looks_like_an_image_line(points, intrinsics)
+        {
+            return Err(Error::invalid(
+                path,
+                &format!("line {}", j + 1),
+                "an image line where the 2-D points of the image above should be: COLMAP \
+                 writes a POINTS2D line (empty if it has none) after every image line",
+            ));
+        }
+
         if t.len() < 10 {
             return Err(Error::invalid(
                 path,
@@ -240,8 +276,16 @@ fn read_images_txt(
             pose,
             vec![format!("from image `{image}`")],
         )?;
+        let known = by_name.len();
         match by_name.get_mut(&name) {
             Some((_, centres, _)) => centres.push(cam.centre()),
+            None if known >= MAX_CAMERAS => {
+                return Err(Error::invalid(
+                    path,
+                    &field,
+                    format!("over {MAX_CAMERAS} cameras: a capture films the teeth with a few"),
+                ));
+            }
             None => {
                 let centre = cam.centre();
                 order.push(name.clone());

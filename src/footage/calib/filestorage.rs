@@ -122,6 +122,7 @@ pub fn parse_yaml(text: &str, path: &Path) -> Result<Node> {
         .map(|l| if l.starts_with("%YAML") { "" } else { l })
         .collect::<Vec<_>>()
         .join("\n");
+    refuse_aliases(&body, path)?;
     let docs = yaml_rust2::YamlLoader::load_from_str(&body)
         .map_err(|e| Error::invalid(path, ".", format!("is not YAML OpenCV can write: {e}")))?;
     let doc = docs
@@ -136,6 +137,35 @@ pub fn parse_yaml(text: &str, path: &Path) -> Result<Node> {
             ".",
             "the document is not a map of named values",
         )),
+    }
+}
+
+/// OpenCV never writes YAML aliases (`*name`), and the loader copies each one in full, so a
+/// few hundred bytes of nested aliases would grow into gigabytes: refuse them before loading.
+fn refuse_aliases(body: &str, path: &Path) -> Result<()> {
+    let mut parser = yaml_rust2::parser::Parser::new_from_str(body);
+    loop {
+        match parser.next_token() {
+            Ok((yaml_rust2::parser::Event::StreamEnd, _)) => return Ok(()),
+            Ok((yaml_rust2::parser::Event::Alias(_), mark)) => {
+                return Err(Error::invalid(
+                    path,
+                    ".",
+                    format!(
+                        "line {}: a YAML alias (*name); OpenCV never writes them: write the values out",
+                        mark.line()
+                    ),
+                ));
+            }
+            Ok(_) => {}
+            Err(e) => {
+                return Err(Error::invalid(
+                    path,
+                    ".",
+                    format!("is not YAML OpenCV can write: {e}"),
+                ));
+            }
+        }
     }
 }
 

@@ -13,7 +13,7 @@ use std::path::{Path, PathBuf};
 
 use nalgebra::Vector3;
 
-pub use colmap::read_colmap;
+pub use colmap::{MAX_CAMERAS, read_colmap};
 pub use filestorage::Node;
 pub use opencv::read_opencv;
 

@@ -46,6 +46,8 @@ const MATRIX_4X4: &[&str] = &[
 ];
 const ROTATION: &[&str] = &["R", "rotation", "rotation_matrix", "rmat"];
 const RVEC: &[&str] = &["rvec", "r", "rotation_vector"];
+/// The largest rotation vector's angle accepted (radians): a few turns.
+const MAX_RVEC_RAD: f64 = 100.0;
 const TRANSLATION: &[&str] = &["T", "t", "tvec", "translation", "translation_vector"];
 const MODEL: &[&str] = &["distortion_model", "model", "camera_model"];
 
@@ -240,7 +242,22 @@ fn read_extrinsics(root: &Node, path: &Path) -> Result<Option<(Rotation3<f64>, V
             Some(match rows * cols {
                 9 => rotation(Matrix3::from_fn(|i, j| d[3 * i + j]), f)?,
                 // A Rodrigues vector (what cv::solvePnP and cv::Rodrigues give).
-                3 => so3_exp(&Vector3::new(d[0], d[1], d[2])),
+                3 => {
+                    let w = Vector3::new(d[0], d[1], d[2]);
+                    // cv::Rodrigues writes angles within π; far beyond, the angle's square
+                    // overflows and the rotation would come out as NaN.
+                    if !w.norm().is_finite() || w.norm() > MAX_RVEC_RAD {
+                        return Err(Error::invalid(
+                            path,
+                            f,
+                            format!(
+                                "a rotation vector of angle {} rad: OpenCV writes angles within π (at most {MAX_RVEC_RAD})",
+                                crate::error::Shown(w.norm())
+                            ),
+                        ));
+                    }
+                    so3_exp(&w)
+                }
                 _ => {
                     return Err(Error::invalid(
                         path,
