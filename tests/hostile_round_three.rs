@@ -492,6 +492,9 @@ fn export_writes_over_neither_its_inputs_nor_itself() {
     ]);
 }
 
+/// An edit of a tracks file.
+type Edit = fn(&mut serde_json::Value);
+
 /// `export` took a record's `jaw` over its poses, wrote duplicate frames as equal key times,
 /// and frames the capture does not have.
 #[test]
@@ -500,7 +503,7 @@ fn export_refuses_records_that_contradict_themselves_or_the_capture() {
     let poses = cap.join("gt/poses.json");
     let out = t.path().join("jaw.csv");
     let edited = t.path().join("edited.json");
-    let cases: [(&str, fn(&mut serde_json::Value), &[&str]); 3] = [
+    let cases: [(&str, Edit, &[&str]); 3] = [
         (
             "a jaw 500 mm off",
             |v| {

@@ -98,7 +98,7 @@ pub fn camera_from_json(cj: &CameraJson, path: &Path, name: &str) -> Result<Came
             if let Some((i, v)) = d.iter().enumerate().find(|(_, v)| v.abs() > MAX_DISTORTION) {
                 return Err(Error::invalid(
                     path,
-                    &format!("distortion[{i}]"),
+                    format!("distortion[{i}]"),
                     format!(
                         "{} is beyond ±{MAX_DISTORTION}: no lens OpenCV calibrates has such a coefficient",
                         Shown(*v)

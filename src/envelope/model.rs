@@ -231,7 +231,7 @@ impl crate::rig::ThreeParameterRig for EnvelopeRig {
     }
 
     fn clamp(&self, d: &[f64; 3]) -> [f64; 3] {
-        d.map(|v| v.max(0.0).min(1.0))
+        d.map(|v| if v.is_nan() { 0.0 } else { v.clamp(0.0, 1.0) })
     }
 
     fn band(&self, _d: &[f64; 3], _k: usize) -> Option<[f64; 2]> {
@@ -258,6 +258,6 @@ impl crate::rig::ThreeParameterRig for EnvelopeRig {
     }
 
     fn clamp_for_search(&self, d: &[f64; 3]) -> [f64; 3] {
-        d.map(|v| v.max(0.0).min(1.0))
+        d.map(|v| if v.is_nan() { 0.0 } else { v.clamp(0.0, 1.0) })
     }
 }

@@ -38,12 +38,15 @@ impl Default for IkSettings {
 /// few centimetres across.
 pub const MAX_COORDINATE_MM: f64 = 1e4;
 
+/// The largest starting parameter accepted: a rig's parameters are of order one.
+pub const MAX_START: f64 = 1e6;
+
 /// A question IK refuses.
 #[derive(Debug, Clone, thiserror::Error, PartialEq)]
 pub enum IkError {
     #[error("the {0}: three finite numbers, each within ±{MAX_COORDINATE_MM} mm")]
     Coordinate(&'static str),
-    #[error("the starting parameters: three finite numbers")]
+    #[error("the starting parameters: three finite numbers within ±{MAX_START}")]
     Start,
 }
 
@@ -74,7 +77,7 @@ pub fn solve<R: ThreeParameterRig + ?Sized>(
     if !bounded(target) {
         return Err(IkError::Coordinate("target"));
     }
-    if from.iter().any(|v| !v.is_finite()) {
+    if from.iter().any(|v| !v.is_finite() || v.abs() > MAX_START) {
         return Err(IkError::Start);
     }
     let moved = |d: &[f64; 3]| rig.pose(d).transform_point(point);

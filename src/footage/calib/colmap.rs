@@ -227,7 +227,7 @@ fn read_images_txt(
         {
             return Err(Error::invalid(
                 path,
-                &format!("line {}", j + 1),
+                format!("line {}", j + 1),
                 "an image line where the 2-D points of the image above should be: COLMAP \
                  writes a POINTS2D line (empty if it has none) after every image line",
             ));
