@@ -192,7 +192,7 @@ fn a_dragged_vertex_lands_on_its_target() {
          for (let k = 0; k < 5; k++) { const [x, y] = v.toCanvas(v.posed(part, vertex)); const hit = v.pick(x, y); if (!hit || (hit.part === part && hit.vertex === vertex)) break; vertex = hit.vertex; }
          const from = v.toCanvas(v.posed(part, vertex));
          const rest = v.jaw(), params = v.params;
-         const ask = async (target) => (await fetch('/api/pose', {method: 'POST', body: JSON.stringify({target, from: params})})).json();
+         const ask = async (target) => (await fetch('/api/pose', {method: 'POST', headers: {'Content-Type': 'application/json'}, body: JSON.stringify({target, from: params})})).json();
          const range = (await ask([15, 0, 0])).protrusion_range_mm;
          const reply = await ask([15, 0, (range[0] + range[1]) / 2]);
          if (!reply.valid || !reply.reached) return 'not a valid pose: ' + JSON.stringify(reply);
