@@ -10,7 +10,7 @@ mod common;
 use std::path::{Path, PathBuf};
 use std::process::Command;
 
-use common::assert_mentions;
+use common::{assert_mentions, have_ffmpeg};
 
 fn jawtrack(args: &[&str]) -> std::process::Output {
     Command::new(env!("CARGO_BIN_EXE_jawtrack"))
@@ -156,19 +156,6 @@ fn calibration_errors_name_the_file_and_field() {
         &format!("../x={}", s(&bad)),
     ]);
     assert!(!out.status.success());
-}
-
-/// `ffmpeg` is installed, or the test is skipped (failed where CI requires it).
-fn have_ffmpeg() -> bool {
-    let found = Command::new("ffmpeg").arg("-version").output().is_ok();
-    if !found {
-        assert!(
-            std::env::var_os("JAWTRACK_REQUIRE_FFMPEG").is_none(),
-            "JAWTRACK_REQUIRE_FFMPEG is set but `ffmpeg` is not on the PATH"
-        );
-        eprintln!("skipped: no `ffmpeg` on the PATH");
-    }
-    found
 }
 
 /// A textured room whose light goes off at time `off` and back on at `on` (frames; frame k

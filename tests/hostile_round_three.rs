@@ -11,7 +11,7 @@ use std::process::{Child, Command, Stdio};
 use std::sync::OnceLock;
 use std::time::{Duration, Instant};
 
-use common::{assert_mentions, edit_json, error_of, fresh_capture};
+use common::{assert_mentions, edit_json, error_of, fresh_capture, have_ffmpeg};
 
 fn s(p: &Path) -> &str {
     p.to_str().unwrap()
@@ -568,19 +568,6 @@ fn skin_predict_does_not_write_over_the_ground_truth() {
 }
 
 // ---- video imports ----
-
-/// `ffmpeg` is installed, or the test is skipped (failed where CI requires it).
-fn have_ffmpeg() -> bool {
-    let found = Command::new("ffmpeg").arg("-version").output().is_ok();
-    if !found {
-        assert!(
-            std::env::var_os("JAWTRACK_REQUIRE_FFMPEG").is_none(),
-            "JAWTRACK_REQUIRE_FFMPEG is set but `ffmpeg` is not on the PATH"
-        );
-        eprintln!("skipped: no `ffmpeg` on the PATH");
-    }
-    found
-}
 
 /// Videos named `-i` could not be imported, `-report` made ffprobe write a log, a name with
 /// `concat:` read another file; `--first` beyond any frame left an empty images/; two videos

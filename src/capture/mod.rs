@@ -7,7 +7,7 @@ pub mod json;
 pub mod masks;
 pub mod mesh;
 mod paths;
-pub use paths::{listed_file_inside, path_inside};
+pub use paths::{capture_reads, listed_file_inside, path_inside};
 pub mod read;
 mod write;
 
@@ -154,26 +154,6 @@ impl Default for OpenOptions {
 }
 
 impl Capture {
-    /// What any command that opens this capture reads, for [`check_outputs`]: capture.json,
-    /// init.json, the spec's folders (cameras, meshes, masks, images, gt) and scans kept at
-    /// the folder's top.
-    pub fn reads(&self) -> (Vec<PathBuf>, Vec<PathBuf>) {
-        let mut files = vec![self.dir.join("capture.json"), self.dir.join("init.json")];
-        if let Ok(entries) = std::fs::read_dir(&self.dir) {
-            files.extend(entries.flatten().map(|e| e.path()).filter(|p| {
-                p.extension()
-                    .and_then(|e| e.to_str())
-                    .is_some_and(|e| mesh::EXTENSIONS.contains(&e.to_ascii_lowercase().as_str()))
-            }));
-        }
-        let mut folders: Vec<PathBuf> = ["cameras", "meshes", "masks", "images", "gt"]
-            .iter()
-            .map(|d| self.dir.join(d))
-            .collect();
-        folders.push(self.mask_dir.clone());
-        (files, folders)
-    }
-
     pub fn open(dir: &Path) -> Result<Capture> {
         Self::open_with(dir, OpenOptions::default())
     }

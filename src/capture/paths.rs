@@ -74,3 +74,26 @@ pub fn listed_file_inside(path: &Path, root: Option<&Path>) -> Result<()> {
     }
     Ok(())
 }
+
+/// What any command that opens this capture reads, for [`super::check_outputs`]: capture.json,
+/// init.json, the spec's folders (cameras, meshes, masks, images, gt) and scans kept at
+/// the folder's top.
+pub fn capture_reads(capture: &super::Capture) -> (Vec<PathBuf>, Vec<PathBuf>) {
+    let mut files = vec![
+        capture.dir.join("capture.json"),
+        capture.dir.join("init.json"),
+    ];
+    if let Ok(entries) = std::fs::read_dir(&capture.dir) {
+        files.extend(entries.flatten().map(|e| e.path()).filter(|p| {
+            p.extension()
+                .and_then(|e| e.to_str())
+                .is_some_and(|e| super::mesh::EXTENSIONS.contains(&e.to_ascii_lowercase().as_str()))
+        }));
+    }
+    let mut folders: Vec<PathBuf> = ["cameras", "meshes", "masks", "images", "gt"]
+        .iter()
+        .map(|d| capture.dir.join(d))
+        .collect();
+    folders.push(capture.mask_dir.clone());
+    (files, folders)
+}

@@ -42,7 +42,7 @@ pub fn run(a: Args) -> anyhow::Result<()> {
         bail!("nothing to write: give --gltf OUT.gltf and/or --csv OUT.csv");
     }
     let capture = Capture::open(&a.capture).context("opening the capture")?;
-    let (files, folders) = capture.reads();
+    let (files, folders) = jawtrack::capture::capture_reads(&capture);
     let mut reads = jawtrack::capture::Reads {
         files: files.iter().map(PathBuf::as_path).collect(),
         folders: folders.iter().map(PathBuf::as_path).collect(),

@@ -237,3 +237,19 @@ v.validateBytes(new Uint8Array(fs.readFileSync(path)), { uri: path, maxIssues: 0
     );
     Some(serde_json::from_slice(&out.stdout).unwrap())
 }
+
+/// `ffmpeg` is installed, or the test is skipped (failed where CI requires it).
+pub fn have_ffmpeg() -> bool {
+    let found = std::process::Command::new("ffmpeg")
+        .arg("-version")
+        .output()
+        .is_ok();
+    if !found {
+        assert!(
+            std::env::var_os("JAWTRACK_REQUIRE_FFMPEG").is_none(),
+            "JAWTRACK_REQUIRE_FFMPEG is set but `ffmpeg` is not on the PATH"
+        );
+        eprintln!("skipped: no `ffmpeg` on the PATH");
+    }
+    found
+}
