@@ -567,6 +567,137 @@ fn skin_predict_does_not_write_over_the_ground_truth() {
     );
 }
 
+/// A subject of jawtrack's own generator (200 frames) in `dir/faces/<name>`, and a model file
+/// learned from it.
+fn face_and_model(dir: &Path) -> (PathBuf, PathBuf) {
+    use jawtrack::synth::face::{FaceSynthOptions, generate_faces};
+    let opts = FaceSynthOptions {
+        subjects: 1,
+        frames: 200,
+        seed: 5,
+        ..FaceSynthOptions::default()
+    };
+    generate_faces(&dir.join("faces"), &opts, &|| {}).unwrap();
+    let face = std::fs::read_dir(dir.join("faces"))
+        .unwrap()
+        .flatten()
+        .map(|e| e.path())
+        .find(|p| p.join("face.json").is_file())
+        .expect("a subject");
+    let model = dir.join("model.json");
+    let out = jawtrack(&["skin", "learn", s(&face), "--out", s(&model)]);
+    assert!(
+        out.status.success(),
+        "{}",
+        String::from_utf8_lossy(&out.stderr)
+    );
+    (face, model)
+}
+
+/// `skin fill` read a tracks file of any `format` and counted a repeated record again; `skin`
+/// took a frame with every vertex at 3e38 mm; its refusals suggested `--allow-outside`, which
+/// it does not have; `skin eval`'s errors named `.` instead of the set's folder.
+#[test]
+fn skin_refuses_foreign_tracks_huge_skin_and_names_its_own_folders() {
+    let t = tempfile::tempdir().unwrap();
+    let (face, model) = face_and_model(t.path());
+    let out = t.path().join("filled.json");
+    let tracks = t.path().join("tracks.json");
+    let first = std::fs::read_dir(face.join("frames"))
+        .unwrap()
+        .flatten()
+        .map(|e| e.path())
+        .min()
+        .unwrap();
+    let frame: u32 = first
+        .file_stem()
+        .unwrap()
+        .to_str()
+        .unwrap()
+        .parse()
+        .unwrap();
+    let record = serde_json::json!({
+        "frame": frame,
+        "upper": {"rotation": [[1,0,0],[0,1,0],[0,0,1]], "translation": [0,0,0]},
+        "lower": {"rotation": [[1,0,0],[0,1,0],[0,0,1]], "translation": [0,-5,0]},
+    });
+    let fill = |v: serde_json::Value| {
+        std::fs::write(&tracks, v.to_string()).unwrap();
+        refused(
+            &[
+                "skin",
+                "fill",
+                s(&model),
+                s(&face),
+                "--tracks",
+                s(&tracks),
+                "--out",
+                s(&out),
+            ],
+            &[],
+        )
+    };
+    let e = fill(serde_json::json!({"format": "other-tracks/2", "frames": [record]}));
+    assert_mentions(&e, &["tracks.json", "format", "other-tracks/2"]);
+    let e = fill(serde_json::json!({"format": "jawtrack-tracks/1", "frames": [record, record]}));
+    assert_mentions(&e, &["tracks.json", "twice"]);
+    assert!(!out.exists());
+
+    // Every vertex of one frame at 3e38 mm (written as OBJ, in place of the frame's file).
+    let count = jawtrack::capture::Mesh::load_vertices(&first)
+        .unwrap()
+        .len();
+    let kept = t.path().join("kept-frame");
+    std::fs::rename(&first, &kept).unwrap();
+    let huge_frame = first.with_extension("obj");
+    std::fs::write(&huge_frame, "v 3e38 3e38 3e38\n".repeat(count)).unwrap();
+    let predicted = t.path().join("jaw.json");
+    refused(
+        &[
+            "skin",
+            "predict",
+            s(&model),
+            s(&face),
+            "--out",
+            s(&predicted),
+        ],
+        &[
+            huge_frame.file_name().unwrap().to_str().unwrap(),
+            "vertex 1",
+            "beyond",
+        ],
+    );
+    std::fs::remove_file(&huge_frame).unwrap();
+    std::fs::rename(&kept, &first).unwrap();
+
+    // A link out of the face sequence: the remedy is not a flag skin lacks.
+    let mandible = face.join("mandible.obj");
+    let elsewhere = t.path().join("mandible.obj");
+    std::fs::rename(&mandible, &elsewhere).unwrap();
+    std::os::unix::fs::symlink(&elsewhere, &mandible).unwrap();
+    let e = refused(
+        &[
+            "skin",
+            "predict",
+            s(&model),
+            s(&face),
+            "--out",
+            s(&predicted),
+        ],
+        &["mandible", "face sequence"],
+    );
+    assert!(!e.contains("--allow-outside"), "{e}");
+    std::fs::remove_file(&mandible).unwrap();
+    std::fs::rename(&elsewhere, &mandible).unwrap();
+
+    // A set of one subject: the error names the set's folder.
+    let e = refused(
+        &["skin", "eval", s(&t.path().join("faces"))],
+        &["faces", "subjects"],
+    );
+    assert!(!e.contains("error: .:"), "{e}");
+}
+
 // ---- video imports ----
 
 /// Videos named `-i` could not be imported, `-report` made ffprobe write a log, a name with

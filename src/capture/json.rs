@@ -209,7 +209,42 @@ impl FrameRecordJson {
                 .to_pose(path, &format!("frame {}.lower", self.frame))?,
         })
     }
+
+    /// The record's jaw pose (lower relative to upper), from its arches' poses, refused where
+    /// the record's own `jaw` disagrees with them (edited apart) or where no jaw could be.
+    pub fn checked_jaw(&self, path: &Path) -> Result<Pose> {
+        let jaw = self.poses(path)?.jaw();
+        let field = format!("frame {}.jaw", self.frame);
+        if let Some(j) = &self.jaw {
+            let stated = j.to_pose(path, &field)?;
+            // Within what another program's rounding of the two may leave.
+            let moved_mm = (stated.translation - jaw.translation).norm();
+            let turned = (stated.rotation.matrix() - jaw.rotation.matrix()).amax();
+            if !(moved_mm.is_finite() && moved_mm < 0.01 && turned < 1e-4) {
+                return Err(Error::invalid(
+                    path,
+                    field,
+                    "disagrees with the arches' poses (lower relative to upper): remove it or correct it",
+                ));
+            }
+        }
+        let apart = jaw.translation.norm();
+        if !(apart <= MAX_JAW_MM) {
+            return Err(Error::invalid(
+                path,
+                format!("frame {}.lower", self.frame),
+                format!(
+                    "the lower arch lies {apart:.0} mm from the upper: no jaw opens that far (at most {MAX_JAW_MM} mm)"
+                ),
+            ));
+        }
+        Ok(jaw)
+    }
 }
+
+/// The farthest the lower arch's frame may lie from the upper's (mm): a jaw opens a few
+/// centimetres.
+pub const MAX_JAW_MM: f64 = 200.0;
 
 /// How a tracked frame came out (the spec's `status`).
 #[derive(Debug, Clone, Copy, PartialEq, Eq, Serialize, Deserialize)]

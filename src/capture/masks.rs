@@ -281,7 +281,7 @@ pub(super) fn scan_masks(cam_dir: &Path, mode: MaskMode, root: Option<&Path>) ->
     let mut size: Option<((u32, u32), u32)> = None;
     for &f in &frames {
         let path = cam_dir.join(format!("{f:06}.png"));
-        super::paths::listed_file_inside(&path, root)?;
+        super::paths::listed_file_inside(super::Folder::Capture, &path, root)?;
         let dims = mask_header(&path, mode)?;
         match size {
             None => size = Some((dims, f)),

@@ -7,7 +7,7 @@ pub mod json;
 pub mod masks;
 pub mod mesh;
 mod paths;
-pub use paths::{capture_reads, listed_file_inside, path_inside};
+pub use paths::{Folder, capture_reads, listed_file_inside, path_inside};
 pub mod read;
 mod write;
 
@@ -250,7 +250,7 @@ impl Capture {
             if options.allow_outside {
                 Ok(dir.join(rel))
             } else {
-                paths::path_inside(dir, &capture_path, field, rel)
+                paths::path_inside(Folder::Capture, dir, &capture_path, field, rel)
             }
         };
         let offsets = cj.frames.offsets.clone().unwrap_or_default();
@@ -606,8 +606,8 @@ pub fn read_pose_file(path: &Path) -> Result<Pose> {
     pj.to_pose(path, "pose")
 }
 
-/// Read gt/poses.json or a tracks.json (frame, upper, lower are required).
-pub fn read_poses(path: &Path) -> Result<Vec<FramePoses>> {
+/// Read a tracks.json or gt/poses.json whole: its format checked, no frame given twice.
+pub fn read_tracks(path: &Path) -> Result<TracksJson> {
     let tj: TracksJson = read_json(path, "poses file")?;
     if tj.format != json::TRACKS_FORMAT {
         return Err(Error::invalid(
@@ -630,6 +630,12 @@ pub fn read_poses(path: &Path) -> Result<Vec<FramePoses>> {
             ));
         }
     }
+    Ok(tj)
+}
+
+/// Read gt/poses.json or a tracks.json (frame, upper, lower are required).
+pub fn read_poses(path: &Path) -> Result<Vec<FramePoses>> {
+    let tj = read_tracks(path)?;
     tj.frames
         .iter()
         .enumerate()

@@ -6,32 +6,58 @@ use std::path::{Path, PathBuf};
 
 use crate::error::{Error, Result};
 
-/// `rel` (capture.json's `field`) joined to the capture folder `dir`, refused when it leaves the
-/// folder: an absolute path, a `..` that climbs out, or a link that resolves outside.
-pub fn path_inside(dir: &Path, capture_path: &Path, field: &str, rel: &str) -> Result<PathBuf> {
+/// The folder a reader keeps to, which its refusals name.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub enum Folder {
+    Capture,
+    FaceSequence,
+}
+
+impl Folder {
+    fn name(self) -> &'static str {
+        match self {
+            Folder::Capture => "the capture folder",
+            Folder::FaceSequence => "the face sequence's folder",
+        }
+    }
+
+    fn rule(self) -> &'static str {
+        match self {
+            Folder::Capture => {
+                "a capture reads only its own folder (`--allow-outside` lets it read elsewhere)"
+            }
+            Folder::FaceSequence => {
+                "a face sequence reads only its own folder (copy the file into it)"
+            }
+        }
+    }
+}
+
+/// `rel` (the `field` of `described_in`, a file in `dir`) joined to `dir`, refused when it
+/// leaves the folder: an absolute path, a `..` that climbs out, or a link that resolves outside.
+pub fn path_inside(
+    folder: Folder,
+    dir: &Path,
+    described_in: &Path,
+    field: &str,
+    rel: &str,
+) -> Result<PathBuf> {
     use std::path::Component;
-    let outside = |why: &str| {
-        Error::invalid(
-            capture_path,
-            field,
-            format!(
-                "{why}: a capture reads only its own folder (`--allow-outside` lets it read elsewhere)"
-            ),
-        )
-    };
+    let outside =
+        |why: String| Error::invalid(described_in, field, format!("{why}: {}", folder.rule()));
     let rel_path = Path::new(rel);
     let mut depth = 0i64;
     for c in rel_path.components() {
         match c {
             Component::Prefix(_) | Component::RootDir => {
-                return Err(outside("an absolute path"));
+                return Err(outside("an absolute path".into()));
             }
             Component::ParentDir => depth -= 1,
             Component::Normal(_) => depth += 1,
             Component::CurDir => {}
         }
         if depth < 0 {
-            return Err(outside("the path climbs out of the capture folder"));
+            return Err(outside(format!("the path climbs out of {}", folder.name())));
         }
     }
     let path = dir.join(rel_path);
@@ -39,9 +65,10 @@ pub fn path_inside(dir: &Path, capture_path: &Path, field: &str, rel: &str) -> R
     if let (Ok(real), Ok(root)) = (path.canonicalize(), dir.canonicalize())
         && !real.starts_with(&root)
     {
-        return Err(outside(
-            "the path resolves (through a link) outside the capture folder",
-        ));
+        return Err(outside(format!(
+            "the path resolves (through a link) outside {}",
+            folder.name()
+        )));
     }
     Ok(path)
 }
@@ -52,12 +79,12 @@ pub fn own_file(dir: &Path, rel: &str, allow_outside: bool) -> Result<PathBuf> {
     if allow_outside {
         return Ok(dir.join(rel));
     }
-    path_inside(dir, &dir.join(rel), "file", rel)
+    path_inside(Folder::Capture, dir, &dir.join(rel), "file", rel)
 }
 
-/// A file found in one of the capture's folders (a mask): refused when it is a link that
-/// resolves outside `root`, the capture folder; `None` when links out are allowed.
-pub fn listed_file_inside(path: &Path, root: Option<&Path>) -> Result<()> {
+/// A file found in one of a folder's sub-folders (a mask, a skin frame): refused when it is a
+/// link that resolves outside `root`, the folder of `folder`; `None` when links out are allowed.
+pub fn listed_file_inside(folder: Folder, path: &Path, root: Option<&Path>) -> Result<()> {
     let Some(root) = root else { return Ok(()) };
     let is_link = std::fs::symlink_metadata(path).is_ok_and(|m| m.file_type().is_symlink());
     if !is_link {
@@ -69,7 +96,11 @@ pub fn listed_file_inside(path: &Path, root: Option<&Path>) -> Result<()> {
         return Err(Error::invalid(
             path,
             "file",
-            "a link that resolves outside the capture folder: a capture reads only its own folder (`--allow-outside` lets it read elsewhere)",
+            format!(
+                "a link that resolves outside {}: {}",
+                folder.name(),
+                folder.rule()
+            ),
         ));
     }
     Ok(())

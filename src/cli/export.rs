@@ -4,11 +4,11 @@ use std::path::{Path, PathBuf};
 
 use anyhow::{Context, bail};
 use jawtrack::anatomy::motion::MotionFrame;
-use jawtrack::capture::json::{Status, TracksJson, read_json};
+use jawtrack::capture::json::Status;
 use jawtrack::capture::{Capture, write_atomic};
 use jawtrack::envelope::JawFrame;
 use jawtrack::export::gltf::{Key, Part, write_gltf};
-use jawtrack::geometry::{Pose, jaw_pose};
+use jawtrack::geometry::Pose;
 
 #[derive(clap::Args)]
 pub struct Args {
@@ -33,10 +33,6 @@ pub struct Args {
     pub rest_frame: Option<u32>,
 }
 
-/// The farthest the lower arch's frame may lie from the upper's (mm): the jaw opens a few
-/// centimetres.
-const MAX_JAW_MM: f64 = 200.0;
-
 pub fn run(a: Args) -> anyhow::Result<()> {
     if a.gltf.is_none() && a.csv.is_none() {
         bail!("nothing to write: give --gltf OUT.gltf and/or --csv OUT.csv");
@@ -50,36 +46,13 @@ pub fn run(a: Args) -> anyhow::Result<()> {
     reads.files.push(&a.tracks);
     let outputs: Vec<&Path> = a.gltf.iter().chain(&a.csv).map(PathBuf::as_path).collect();
     jawtrack::capture::check_outputs(&reads, &outputs)?;
-    let tracks: TracksJson = read_json(&a.tracks, "tracks file")?;
+    let tracks = jawtrack::capture::read_tracks(&a.tracks)?;
     let mut frames: Vec<(u32, Status, Pose)> = Vec::new();
     for f in &tracks.frames {
         if f.status() == Status::NoData {
             continue;
         }
-        let p = f.poses(&a.tracks)?;
-        let jaw = jaw_pose(&p.upper, &p.lower);
-        // The record's `jaw` is derived from its poses: one that disagrees was edited apart.
-        if let Some(j) = &f.jaw {
-            let stated = j.to_pose(&a.tracks, &format!("frame {}.jaw", f.frame))?;
-            // Within what another program's rounding of the two may leave.
-            let moved_mm = (stated.translation - jaw.translation).norm();
-            let turned = (stated.rotation.matrix() - jaw.rotation.matrix()).amax();
-            if !(moved_mm.is_finite() && moved_mm < 0.01 && turned < 1e-4) {
-                bail!(
-                    "{}: frame {}: `jaw` disagrees with the arches' poses (lower relative to upper): remove it or correct it",
-                    a.tracks.display(),
-                    f.frame
-                );
-            }
-        }
-        if !jaw.translation.norm().is_finite() || jaw.translation.norm() > MAX_JAW_MM {
-            bail!(
-                "{}: frame {}: the lower arch lies {:.0} mm from the upper: no jaw opens that far (at most {MAX_JAW_MM} mm)",
-                a.tracks.display(),
-                f.frame,
-                jaw.translation.norm()
-            );
-        }
+        let jaw = f.checked_jaw(&a.tracks)?;
         let last = capture.first_frame as u64 + capture.frame_count as u64;
         if (f.frame as u64) < capture.first_frame as u64 || f.frame as u64 >= last {
             bail!(
@@ -93,13 +66,6 @@ pub fn run(a: Args) -> anyhow::Result<()> {
         frames.push((f.frame, f.status(), jaw));
     }
     frames.sort_by_key(|f| f.0);
-    if let Some(w) = frames.windows(2).find(|w| w[0].0 == w[1].0) {
-        bail!(
-            "{}: frame {} is listed twice (glTF key times must increase)",
-            a.tracks.display(),
-            w[0].0
-        );
-    }
     if frames.is_empty() {
         bail!("{}: no frame with a pose (all no-data)", a.tracks.display());
     }

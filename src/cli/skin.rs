@@ -256,8 +256,7 @@ pub fn run(c: Command) -> anyhow::Result<()> {
             let settings = settings.read()?;
             guard(&out, &[&model, &tracks], &[&face])?;
             let (m, s) = model_and_face(&model, &face)?;
-            let t: jawtrack::capture::json::TracksJson =
-                jawtrack::capture::json::read_json(&tracks, "tracks")?;
+            let t = jawtrack::capture::read_tracks(&tracks)?;
             let (filled, r) = jawtrack::skin::fill::fill(&m, &s, &t, &tracks, &settings.retarget)?;
             write_json_atomic(&out, &filled)?;
             println!(
@@ -269,6 +268,12 @@ pub fn run(c: Command) -> anyhow::Result<()> {
                 r.retarget.cost_before,
                 r.retarget.cost_after
             );
+            if !r.left_out.is_empty() {
+                println!(
+                    "left out of the calibration, their teeth pose far from what the skin says: frames {:?}",
+                    r.left_out
+                );
+            }
             println!("wrote {}", out.display());
         }
         Command::Eval {
@@ -286,7 +291,7 @@ pub fn run(c: Command) -> anyhow::Result<()> {
                 .iter()
                 .map(|(_, d)| load(d))
                 .collect::<anyhow::Result<Vec<_>>>()?;
-            let e = evaluate(&subjects, &settings, &|m| eprintln!("{m}"))?;
+            let e = evaluate(&dir, &subjects, &settings, &|m| eprintln!("{m}"))?;
             if let Some(p) = &plot {
                 jawtrack::skin::plot::error_over_frames(p, &e)?;
             }

@@ -88,8 +88,10 @@ fn mean(v: &[f64]) -> f64 {
     v.iter().sum::<f64>() / v.len().max(1) as f64
 }
 
-/// Evaluate a set (at least two subjects, all with jaw poses and calibration frames).
+/// Evaluate a set (at least two subjects, all with jaw poses and calibration frames), read from
+/// the folder `set` (which errors name).
 pub fn evaluate(
+    set: &std::path::Path,
     subjects: &[Subject],
     settings: &SkinSettings,
     progress: &dyn Fn(&str),
@@ -97,10 +99,10 @@ pub fn evaluate(
     let started = Instant::now();
     if subjects.len() < 2 {
         return Err(Error::invalid(
-            std::path::Path::new("."),
+            set,
             "subjects",
             format!(
-                "{} subject(s); leave-one-subject-out needs at least two",
+                "{} subject(s) (sub-folders with a face.json); leave-one-subject-out needs at least two",
                 subjects.len()
             ),
         ));

@@ -11,18 +11,28 @@ use serde::Serialize;
 
 use super::model::{SkinModel, retarget_on};
 use super::retarget::{RetargetReport, RetargetSettings};
-use super::subject::Subject;
+use super::subject::{Subject, bone_point_error};
 use crate::capture::json::{PoseJson, Status, TracksJson};
 use crate::error::{Error, Result};
 
 /// Calibration frames chosen from the confident ones, at most.
 pub const MAX_CALIBRATION: usize = 24;
 
+/// A calibration frame whose bone points the retargeted mapping misses by more than this
+/// (mm) and by more than [`OUTLIER_FACTOR`] times the median miss is left out. Honest poses
+/// are missed by a few millimetres at most, even at the extremes of the motion and across
+/// subjects; a frame the tracker got wrong by a centimetre or more is not.
+pub const OUTLIER_MM: f64 = 10.0;
+pub const OUTLIER_FACTOR: f64 = 4.0;
+
 #[derive(Debug, Clone, Serialize)]
 pub struct FillReport {
     pub teeth_frames: usize,
     pub skin_frames: usize,
     pub calibration_frames: Vec<u32>,
+    /// Confident frames left out of the calibration: the retargeted mapping could not explain
+    /// their teeth pose (a tracking error the tracker did not flag).
+    pub left_out: Vec<u32>,
     pub retarget: RetargetReport,
 }
 
@@ -45,7 +55,7 @@ pub fn fill(
         let Some(i) = subject.index_of(r.frame) else {
             continue;
         };
-        subject.jaw[i] = Some(r.poses(tracks_path)?.jaw());
+        subject.jaw[i] = Some(r.checked_jaw(tracks_path)?);
         teeth += 1;
     }
     if teeth == 0 {
@@ -84,7 +94,35 @@ pub fn fill(
             dist[k] = dist[k].min((menton(i) - menton(known[j])).norm());
         }
     }
-    let (m, report) = retarget_on(model, &subject, &chosen, settings)?;
+    let (mut m, mut report) = retarget_on(model, &subject, &chosen, settings)?;
+    // A confident frame the tracker got wrong would pull the whole retargeting toward it (and
+    // the farthest-point choice favours such outliers): frames whose teeth pose the
+    // retargeted mapping cannot explain, far beyond the others' misfit, are left out once.
+    let misfit: Vec<f64> = chosen
+        .iter()
+        .map(|&i| {
+            let predicted = m.predict(&subject.skin_features(&m.skin_points, i));
+            let teeth = subject.jaw[i].expect("a chosen frame has a jaw");
+            bone_point_error(&subject.bone, &predicted, &teeth)
+        })
+        .collect();
+    let typical = crate::stats::Stats::of(&misfit).median;
+    let kept: Vec<usize> = chosen
+        .iter()
+        .zip(&misfit)
+        .filter(|&(_, &e)| e <= OUTLIER_MM.max(OUTLIER_FACTOR * typical))
+        .map(|(&i, _)| i)
+        .collect();
+    let mut left_out = Vec::new();
+    if kept.len() < chosen.len() && kept.len() >= 2 {
+        left_out = chosen
+            .iter()
+            .filter(|i| !kept.contains(i))
+            .map(|&i| subject.frames[i])
+            .collect();
+        (m, report) = retarget_on(model, &subject, &kept, settings)?;
+        chosen = kept;
+    }
     let mut out = tracks.clone();
     let mut skin = 0;
     for r in &mut out.frames {
@@ -110,6 +148,7 @@ pub fn fill(
             teeth_frames: teeth,
             skin_frames: skin,
             calibration_frames: chosen.iter().map(|&i| subject.frames[i]).collect(),
+            left_out,
             retarget: report,
         },
     ))

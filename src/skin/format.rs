@@ -9,7 +9,7 @@ use std::path::{Path, PathBuf};
 use serde::{Deserialize, Serialize};
 
 use crate::capture::json::{PoseJson, read_json_noting_unknown};
-use crate::capture::{BoiSource, Mesh, path_inside};
+use crate::capture::{BoiSource, Folder, Mesh, path_inside};
 use crate::error::{Error, Result};
 use crate::geometry::Pose;
 
@@ -128,11 +128,18 @@ impl FaceSequence {
                 format!("{first} + {count} frames runs past the largest frame number"),
             ));
         }
-        let neutral_path = path_inside(dir, &path, "neutral", &json.neutral)?;
+        let neutral_path = path_inside(Folder::FaceSequence, dir, &path, "neutral", &json.neutral)?;
         let neutral = Mesh::load(&neutral_path, BoiSource::None)?;
-        let mandible_path = path_inside(dir, &path, "mandible", &json.mandible)?;
+        let mandible_path =
+            path_inside(Folder::FaceSequence, dir, &path, "mandible", &json.mandible)?;
         let mandible = Mesh::load(&mandible_path, BoiSource::None)?;
-        let frames_dir = path_inside(dir, &path, "frames_dir", &json.frames_dir)?;
+        let frames_dir = path_inside(
+            Folder::FaceSequence,
+            dir,
+            &path,
+            "frames_dir",
+            &json.frames_dir,
+        )?;
         if !frames_dir.is_dir() {
             return Err(Error::Missing {
                 path: frames_dir,
@@ -142,7 +149,10 @@ impl FaceSequence {
         let in_range = |f: u32| f >= first && f - first < count;
         let jaw = match &json.jaw {
             None => BTreeMap::new(),
-            Some(rel) => read_jaw(&path_inside(dir, &path, "jaw", rel)?, &in_range)?,
+            Some(rel) => read_jaw(
+                &path_inside(Folder::FaceSequence, dir, &path, "jaw", rel)?,
+                &in_range,
+            )?,
         };
         if let Some(cal) = &json.calibration {
             for (name, frame) in cal.frames() {
@@ -181,7 +191,7 @@ impl FaceSequence {
         for ext in ["obj", "ply"] {
             let p = self.frames_dir.join(format!("{stem}.{ext}"));
             if p.is_file() {
-                crate::capture::listed_file_inside(&p, Some(&self.dir))?;
+                crate::capture::listed_file_inside(Folder::FaceSequence, &p, Some(&self.dir))?;
                 return Ok(p);
             }
         }

@@ -75,6 +75,32 @@ pub(crate) struct RawMesh {
     pub tags: Vec<String>,
 }
 
+/// The largest coordinate a mesh may have (mm): a kilometre, far beyond any head, and far enough
+/// below `f32`'s range that distances and products of coordinates stay finite.
+pub const MAX_COORDINATE_MM: f32 = 1e6;
+
+/// Every coordinate finite and within [`MAX_COORDINATE_MM`]; an error names the first vertex
+/// that is not.
+fn check_coordinates(path: &Path, positions: &[[f32; 3]]) -> Result<()> {
+    let Some(i) = positions
+        .iter()
+        .position(|p| p.iter().any(|c| !(c.abs() <= MAX_COORDINATE_MM)))
+    else {
+        return Ok(());
+    };
+    let p = positions[i];
+    let why = if p.iter().all(|c| c.is_finite()) {
+        format!("has a coordinate beyond ±{MAX_COORDINATE_MM} mm {p:?}: meshes are in millimetres")
+    } else {
+        format!("has a non-finite coordinate {p:?}")
+    };
+    Err(Error::invalid(
+        path,
+        format!("vertex {} (counting from 1)", i + 1),
+        why,
+    ))
+}
+
 /// The extensions of the mesh formats read (lower case).
 pub const EXTENSIONS: [&str; 3] = ["obj", "stl", "ply"];
 
@@ -176,17 +202,7 @@ impl Mesh {
     /// face sequence, whose topology is its neutral mesh's.
     pub fn load_vertices(path: &Path) -> Result<Vec<[f32; 3]>> {
         let (raw, _) = read_raw(path, false)?;
-        if let Some(i) = raw
-            .positions
-            .iter()
-            .position(|p| p.iter().any(|c| !c.is_finite()))
-        {
-            return Err(Error::invalid(
-                path,
-                format!("vertex {} (counting from 1)", i + 1),
-                format!("has a non-finite coordinate {:?}", raw.positions[i]),
-            ));
-        }
+        check_coordinates(path, &raw.positions)?;
         Ok(raw.positions)
     }
 
@@ -211,17 +227,7 @@ impl Mesh {
         if self.triangles.is_empty() {
             return Err(Error::invalid(path, "faces", "the mesh has no faces"));
         }
-        if let Some(i) = self
-            .positions
-            .iter()
-            .position(|p| p.iter().any(|c| !c.is_finite()))
-        {
-            return Err(Error::invalid(
-                path,
-                format!("vertex {} (counting from 1)", i + 1),
-                format!("has a non-finite coordinate {:?}", self.positions[i]),
-            ));
-        }
+        check_coordinates(path, &self.positions)?;
         let n = self.positions.len() as u32;
         if let Some(i) = self
             .triangles
