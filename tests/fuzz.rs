@@ -3,12 +3,19 @@
 //! an error, never a panic, a hang or an abort. The seeds are checked in, all written by another
 //! program: the capture `fixtures/tiny-capture` and the corpus `fixtures/fuzz` (meshes in every
 //! format, a journal, a tracks.json; `make_corpus.py` there writes it), and the calibration files
-//! of `fixtures/calib` (OpenCV 4 and 5, COLMAP; its `make.py`).
+//! of `fixtures/calib` (OpenCV 4 and 5, COLMAP; its `make.py`); a face sequence is written at
+//! run time by `fixtures/face-python/make.py`, and the page's server is asked mutated copies of
+//! the page's own requests.
 //!
 //! CI runs `PROPTEST_CASES` cases per target (64 by default here); run longer with e.g.
 //! `PROPTEST_CASES=100000 cargo test --release --test fuzz`.
 
+use std::io::{Read, Write};
+use std::net::TcpStream;
 use std::path::{Path, PathBuf};
+use std::process::{Child, Command, Stdio};
+use std::sync::{Mutex, OnceLock};
+use std::time::Duration;
 
 use jawtrack::capture::{BoiSource, Capture, MaskMode, Mesh};
 use proptest::prelude::*;
@@ -189,6 +196,198 @@ const JSON_FILES: [&str; 4] = [
     "meshes/upper.boi.json",
 ];
 
+/// A face sequence of 4 frames (fixtures/face-python/make.py, its calibration moved into
+/// those frames), written once per run.
+fn face_seed() -> &'static Path {
+    static SEED: OnceLock<tempfile::TempDir> = OnceLock::new();
+    SEED.get_or_init(|| {
+        let t = tempfile::tempdir().unwrap();
+        let script = Path::new(env!("CARGO_MANIFEST_DIR")).join("fixtures/face-python/make.py");
+        let status = Command::new("python3")
+            .arg(&script)
+            .arg(t.path())
+            .args(["1", "4"])
+            .stdout(Stdio::null())
+            .status()
+            .expect("python3 runs the face fixture's writer");
+        assert!(status.success());
+        let face = t.path().join("p1/face.json");
+        let mut v: serde_json::Value =
+            serde_json::from_slice(&std::fs::read(&face).unwrap()).unwrap();
+        v["calibration"] = serde_json::json!({
+            "open": 1000, "left": 1001, "right": 1002, "forward": 1003, "backward": 1000
+        });
+        std::fs::write(&face, serde_json::to_vec(&v).unwrap()).unwrap();
+        t
+    })
+    .path()
+    .join("p1")
+    .leak()
+}
+
+const FACE_FILES: [&str; 5] = [
+    "face.json",
+    "jaw.json",
+    "neutral.obj",
+    "mandible.obj",
+    "frames/001002.obj",
+];
+
+/// Open the face seed with `file` replaced by `bytes` and read every frame: any answer but a
+/// panic.
+fn open_face_with_file(file: &str, bytes: &[u8]) {
+    use jawtrack::skin::{format::FaceSequence, subject::Subject};
+    let t = tempfile::tempdir().unwrap();
+    let dir = t.path().join("face");
+    copy_dir(face_seed(), &dir);
+    std::fs::write(dir.join(file), bytes).unwrap();
+    if let Ok(seq) = FaceSequence::open(&dir)
+        && let Ok(s) = Subject::load(&seq, "fuzz", &|| {})
+    {
+        let _ = s.rest();
+        let _ = s.calibration_indices();
+    }
+}
+
+/// `jawtrack view` on a synthetic capture and a rig learned on it, started once per run, its
+/// standard error kept in a file to look for panics.
+struct ViewServer {
+    _dir: tempfile::TempDir,
+    child: Child,
+    port: u16,
+    stderr: PathBuf,
+}
+
+impl Drop for ViewServer {
+    fn drop(&mut self) {
+        let _ = self.child.kill();
+    }
+}
+
+fn view_server() -> &'static Mutex<ViewServer> {
+    static SERVER: OnceLock<Mutex<ViewServer>> = OnceLock::new();
+    SERVER.get_or_init(|| {
+        let bin = env!("CARGO_BIN_EXE_jawtrack");
+        let dir = tempfile::tempdir().unwrap();
+        let cap = dir.path().join("cap");
+        let rig = dir.path().join("rig.json");
+        let run = |args: &[&Path]| {
+            let out = Command::new(bin).args(args).output().unwrap();
+            assert!(
+                out.status.success(),
+                "{}",
+                String::from_utf8_lossy(&out.stderr)
+            );
+        };
+        let p = Path::new;
+        run(&[p("synth"), &cap, p("--frames"), p("12")]);
+        run(&[
+            p("rig"),
+            p("learn"),
+            &cap.join("gt/poses.json"),
+            p("--mesh"),
+            &cap.join("meshes/mandible.obj"),
+            p("-o"),
+            &rig,
+        ]);
+        let stderr = dir.path().join("view.stderr");
+        let mut child = Command::new(bin)
+            .arg("view")
+            .arg(&rig)
+            .arg("--capture")
+            .arg(&cap)
+            .arg("--tracks")
+            .arg(cap.join("gt/poses.json"))
+            .args(["--port", "0"])
+            .stdout(Stdio::piped())
+            .stderr(std::fs::File::create(&stderr).unwrap())
+            .spawn()
+            .unwrap();
+        let mut line = String::new();
+        std::io::BufRead::read_line(
+            &mut std::io::BufReader::new(child.stdout.take().unwrap()),
+            &mut line,
+        )
+        .unwrap();
+        let port = line
+            .split("127.0.0.1:")
+            .nth(1)
+            .and_then(|r| r.split('/').next())
+            .and_then(|p| p.parse().ok())
+            .unwrap_or_else(|| panic!("no port in {line:?}"));
+        Mutex::new(ViewServer {
+            _dir: dir,
+            child,
+            port,
+            stderr,
+        })
+    })
+}
+
+/// Send `raw`, close the sending side, and read the reply (if any) to its end.
+fn exchange(port: u16, raw: &[u8]) -> Vec<u8> {
+    let mut c = TcpStream::connect(("127.0.0.1", port)).unwrap();
+    c.set_read_timeout(Some(Duration::from_secs(20))).unwrap();
+    let _ = c.write_all(raw);
+    let _ = c.shutdown(std::net::Shutdown::Write);
+    let mut reply = Vec::new();
+    let _ = c.read_to_end(&mut reply);
+    reply
+}
+
+/// The page's own requests, as the seeds of the server's target (`{port}` stands for the
+/// server's).
+const VIEW_SEEDS: [(&str, &str, &str); 7] = [
+    ("GET", "/", ""),
+    ("GET", "/api/scene", ""),
+    ("GET", "/mesh/lower.bin", ""),
+    ("GET", "/overlay/cam0/3.png", ""),
+    (
+        "POST",
+        "/api/pose",
+        r#"{"target":[1.0,-2.0,3.0],"from":[0.0,0.0,0.0]}"#,
+    ),
+    (
+        "POST",
+        "/api/ik",
+        r#"{"part":"lower","vertex":10,"target":[0.0,-30.0,10.0],"from":[0.0,0.0,0.0]}"#,
+    ),
+    (
+        "POST",
+        "/api/animation",
+        r#"{"keys":[{"time":0.0,"params":[0,0,0]},{"time":1.0,"params":[2,0,0]}],"fps":10}"#,
+    ),
+];
+
+fn view_request(port: u16, seed: usize, body: &str) -> Vec<u8> {
+    let (method, path, _) = VIEW_SEEDS[seed];
+    format!(
+        "{method} {path} HTTP/1.1\r\nHost: 127.0.0.1:{port}\r\nOrigin: http://127.0.0.1:{port}\r\nContent-Type: application/json\r\nContent-Length: {}\r\n\r\n{body}",
+        body.len()
+    )
+    .into_bytes()
+}
+
+/// Ask the server `raw`; then it must still answer the page, and have written no panic.
+fn ask_view_server(raw: &[u8]) {
+    let server = view_server().lock().unwrap_or_else(|e| e.into_inner());
+    let reply = exchange(server.port, raw);
+    assert!(
+        reply.is_empty() || reply.starts_with(b"HTTP/1.1 "),
+        "not an HTTP reply: {:?}",
+        String::from_utf8_lossy(&reply[..reply.len().min(200)])
+    );
+    let page = exchange(server.port, &view_request(server.port, 1, ""));
+    assert!(
+        page.starts_with(b"HTTP/1.1 200"),
+        "the page's scene after {:?}: {:?}",
+        String::from_utf8_lossy(&raw[..raw.len().min(300)]),
+        String::from_utf8_lossy(&page[..page.len().min(200)])
+    );
+    let log = std::fs::read_to_string(&server.stderr).unwrap_or_default();
+    assert!(!log.contains("panicked"), "the server panicked:\n{log}");
+}
+
 proptest! {
     #![proptest_config(config())]
 
@@ -274,6 +473,37 @@ proptest! {
             }
         }
     }
+
+    #[test]
+    fn face_sequences_with_bytes_edited(file in 0..FACE_FILES.len(), e in edits()) {
+        let name = FACE_FILES[file];
+        let original = std::fs::read(face_seed().join(name)).unwrap();
+        open_face_with_file(name, &apply(&original, &e));
+    }
+
+    #[test]
+    fn face_sequences_with_a_value_replaced(jaw in any::<bool>(), k in any::<usize>(), with in extreme()) {
+        let name = if jaw { "jaw.json" } else { "face.json" };
+        let mut v: serde_json::Value =
+            serde_json::from_slice(&std::fs::read(face_seed().join(name)).unwrap()).unwrap();
+        replace_leaf(&mut v, k, &with);
+        open_face_with_file(name, &serde_json::to_vec(&v).unwrap());
+    }
+
+    #[test]
+    fn view_requests_with_bytes_edited(seed in 0..VIEW_SEEDS.len(), e in edits()) {
+        let port = view_server().lock().unwrap_or_else(|e| e.into_inner()).port;
+        let raw = view_request(port, seed, VIEW_SEEDS[seed].2);
+        ask_view_server(&apply(&raw, &e));
+    }
+
+    #[test]
+    fn view_questions_with_a_value_replaced(seed in 4..VIEW_SEEDS.len(), k in any::<usize>(), with in extreme()) {
+        let port = view_server().lock().unwrap_or_else(|e| e.into_inner()).port;
+        let mut v: serde_json::Value = serde_json::from_str(VIEW_SEEDS[seed].2).unwrap();
+        replace_leaf(&mut v, k, &with);
+        ask_view_server(&view_request(port, seed, &v.to_string()));
+    }
 }
 
 /// The calibration seeds: files OpenCV 4 and 5 wrote, and a COLMAP model (fixtures/calib).
@@ -296,6 +526,18 @@ fn every_seed_of_the_corpus_reads() {
         let mesh = Mesh::load(&path, BoiSource::GroupIfPresent("boi"))
             .unwrap_or_else(|e| panic!("{which:?}: {e}"));
         assert!(mesh.triangles.len() >= 8, "{which:?}");
+    }
+    let seq = jawtrack::skin::format::FaceSequence::open(face_seed()).unwrap();
+    jawtrack::skin::subject::Subject::load(&seq, "seed", &|| {}).unwrap();
+    for seed in 0..VIEW_SEEDS.len() {
+        let port = view_server().lock().unwrap().port;
+        let (method, path, body) = VIEW_SEEDS[seed];
+        let reply = exchange(port, &view_request(port, seed, body));
+        assert!(
+            reply.starts_with(b"HTTP/1.1 200"),
+            "{method} {path}: {:?}",
+            String::from_utf8_lossy(&reply[..reply.len().min(300)])
+        );
     }
     for name in ["tracks.json.journal", "tracks.json"] {
         let t = tempfile::tempdir().unwrap();
