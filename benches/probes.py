@@ -50,8 +50,9 @@ MEM_CAP = 8 << 30
 BAD = {"ACCEPTED", "PANIC", "ABORT", "HANG", "OVER-MEM", "WRONG"}
 
 
-def run(argv, cwd, limit=LIMIT_S):
-    """Run argv; (outcome-ish, rc, stderr, peak RSS in bytes, seconds)."""
+def run(argv, cwd, limit=LIMIT_S, stdout=subprocess.DEVNULL):
+    """Run argv; (outcome-ish, rc, stderr, peak RSS in bytes, seconds). stdout: where its
+    standard output goes (a file, for a probe that reads it)."""
 
     def cap():
         resource.setrlimit(resource.RLIMIT_AS, (MEM_CAP, MEM_CAP))
@@ -59,7 +60,7 @@ def run(argv, cwd, limit=LIMIT_S):
 
     err = tempfile.TemporaryFile()
     started = time.time()
-    p = subprocess.Popen(argv, cwd=cwd, stdout=subprocess.DEVNULL, stderr=err,
+    p = subprocess.Popen(argv, cwd=cwd, stdout=stdout, stderr=err,
                          preexec_fn=cap, env={**os.environ, "RUST_BACKTRACE": "0"})
     hung = False
     while True:
@@ -1095,6 +1096,111 @@ def setup_rvec(d, rvec):
 probe("messages", "rvec [1e308, 0., 0.] in place of R: no NaN in the message",
       check=lambda rc, e, d: "WRONG" if "nan" in e.lower() else None)(
     lambda d: setup_rvec(d, "[1e308, 0., 0.]"))
+
+
+# -- skin: `jawtrack skin` on hostile face sequences and tracks (issue 35) -------------------
+IDENTITY = [[1, 0, 0], [0, 1, 0], [0, 0, 1]]
+
+
+def skin_set():
+    """Two face sequences of 200 frames (fixtures/face-python) and a model learned from the
+    first, made once a run: (set folder, model)."""
+    if "skin" not in _CACHE:
+        keep = Path(tempfile.mkdtemp(prefix="jawtrack-probes-skin-"))
+        atexit.register(shutil.rmtree, keep, True)
+        subprocess.run([sys.executable, str(ROOT / "fixtures/face-python/make.py"), str(keep / "set"), "2", "200"],
+                       capture_output=True, check=True)
+        subprocess.run([BINARY, "skin", "learn", str(keep / "set/p1"), "-o", str(keep / "model.json")],
+                       capture_output=True, check=True)
+        _CACHE["skin"] = (keep / "set", keep / "model.json")
+    return _CACHE["skin"]
+
+
+def face_copy(d):
+    """A copy of the second subject (the one the model did not learn from) in d."""
+    face = Path(d) / "p2"
+    shutil.copytree(skin_set()[0] / "p2", face)
+    return face
+
+
+def skin_tracks(face):
+    """A tracks.json of the face's true jaw poses: every third frame ok, the rest low-confidence."""
+    poses = sorted(json.loads((face / "jaw.json").read_text())["poses"], key=lambda p: p["frame"])
+    return {"format": "jawtrack-tracks/1", "frames": [
+        {"frame": p["frame"], "upper": pose(), "lower": {"rotation": p["rotation"], "translation": p["translation"]},
+         "status": "ok" if k % 3 == 0 else "low-confidence"} for k, p in enumerate(poses)]}
+
+
+def setup_fill(d, edit):
+    face = face_copy(d)
+    tracks = skin_tracks(face)
+    edit(tracks)
+    t = Path(d) / "tracks.json"
+    t.write_text(json.dumps(tracks))
+    return ["skin", "fill", str(skin_set()[1]), str(face), "--tracks", str(t), "--out", str(Path(d) / "out.json")], size(t)
+
+
+def setup_predict(d, edit):
+    face = face_copy(d)
+    edit(face)
+    return ["skin", "predict", str(skin_set()[1]), str(face), "--out", str(Path(d) / "out.json")], 0
+
+
+def far_frame(face):
+    # Frame 1005's OBJ, its vertex count kept, every vertex at 3e38 (finite, in f32 range).
+    obj = face / "frames" / "001005.obj"
+    n = sum(1 for line in obj.read_text().splitlines() if line.startswith("v "))
+    obj.write_text("v 3e38 3e38 3e38\n" * n)
+
+
+def mandible_outside(face):
+    # mandible.obj a link to a file beside the face sequence, not in it.
+    outside = face.parent / "outside.obj"
+    shutil.move(str(face / "mandible.obj"), outside)
+    (face / "mandible.obj").symlink_to(outside)
+
+
+def setup_one_subject(d):
+    shutil.copytree(skin_set()[0] / "p1", Path(d) / "oneset" / "p1")
+    return ["skin", "eval", "oneset"], 0
+
+
+def names_set(rc, stderr, d):
+    # The error must name the set folder it was given, not `.` (its subject's parent, say).
+    return "MISLEADING" if "error: .:" in stderr or "oneset" not in stderr else None
+
+
+def shift_one_ok(tracks):
+    # The sixth ok record's lower translation 25 mm off in y; the rest are the truth.
+    ok = [f for f in tracks["frames"] if f["status"] == "ok"]
+    ok[5]["lower"]["translation"][1] += 25.0
+
+
+def setup_wrong_ok(d):
+    # Must run, and say on stdout that the wrong frame was left out of the calibration.
+    argv, n = setup_fill(d, shift_one_ok)
+    with tempfile.TemporaryFile() as out:
+        crash, rc, stderr, rss, _ = run([BINARY, *argv], d, stdout=out)
+        out.seek(0)
+        said = [line for line in out.read().decode("utf-8", "replace").splitlines()
+                if "left out of the calibration" in line]
+    outcome = crash or ("ran" if rc == 0 and said else "WRONG")
+    note = said[0] if said else "stdout does not say `left out of the calibration`"
+    return outcome, rc, stderr + "\n" + note, rss, n
+
+
+probe("skin", "fill: tracks format \"other-tracks/2\"", check=says("format"))(
+    lambda d: setup_fill(d, lambda t: t.__setitem__("format", "other-tracks/2")))
+probe("skin", "fill: tracks with a frame record twice", check=says("twice"))(
+    lambda d: setup_fill(d, lambda t: t["frames"].insert(1, json.loads(json.dumps(t["frames"][0])))))
+probe("skin", "predict: frame 1005's OBJ with every vertex at 3e38", check=says("beyond"))(
+    lambda d: setup_predict(d, far_frame))
+probe("skin", "predict: mandible.obj a link outside the face sequence (no --allow-outside hint)",
+      check=lambda rc, e, d: "MISLEADING" if "--allow-outside" in e else None)(
+    lambda d: setup_predict(d, mandible_outside))
+probe("skin", "eval: a set of one subject (the error names the set)", check=names_set)(setup_one_subject)
+direct_probe("skin", "fill: one wrong ok record (lower y + 25 mm): runs, left out of the calibration")(
+    setup_wrong_ok)
 
 
 def main():
