@@ -7,7 +7,8 @@
 use std::path::Path;
 
 use criterion::{BenchmarkId, Criterion, criterion_group, criterion_main};
-use jawtrack::capture::{Arch, ArchPoses, Capture, OpenOptions};
+use jawtrack::arch::{Arch, ArchPoses};
+use jawtrack::capture::{Capture, OpenOptions};
 use jawtrack::energy::gpu::GpuEnergy;
 use jawtrack::energy::{CpuEnergy, EnergyEngine, Region, Scene};
 use jawtrack::synth::{Preset, SynthOptions, generate};

@@ -6,13 +6,17 @@
 //! [`synth`] writes synthetic captures with ground truth.
 
 pub mod anatomy;
+pub mod arch;
 pub mod capture;
 pub mod energy;
 pub mod envelope;
 pub mod error;
 pub mod export;
 pub mod footage;
+pub mod formats;
 pub mod geometry;
+pub mod io;
+pub mod mesh;
 pub mod rig;
 pub mod segment;
 pub mod settings;

@@ -399,7 +399,7 @@ fn track_refuses_to_replace_an_output_that_is_not_a_regular_file() {
             .is_fifo()
     );
     // And the library's atomic writer refuses it too.
-    let e = jawtrack::capture::write_atomic(&pipe, b"{}")
+    let e = jawtrack::io::write_atomic(&pipe, b"{}")
         .unwrap_err()
         .to_string();
     assert!(e.contains("not a regular file"), "{e}");

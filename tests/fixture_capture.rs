@@ -4,8 +4,9 @@
 
 use std::path::Path;
 
+use jawtrack::arch::Arch;
 use jawtrack::capture::masks::decode_mask;
-use jawtrack::capture::{Arch, ArchInit, Capture, MaskMode};
+use jawtrack::capture::{ArchInit, Capture, MaskMode};
 use jawtrack::energy::raster::render_labels;
 use jawtrack::energy::{CpuEnergy, EnergyEngine, Scene};
 use jawtrack::geometry::{Camera, Pose, so3_log};

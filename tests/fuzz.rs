@@ -17,7 +17,8 @@ use std::process::{Child, Command, Stdio};
 use std::sync::{Mutex, OnceLock};
 use std::time::Duration;
 
-use jawtrack::capture::{BoiSource, Capture, MaskMode, Mesh};
+use jawtrack::capture::{Capture, MaskMode};
+use jawtrack::mesh::{BoiSource, Mesh};
 use proptest::prelude::*;
 
 fn config() -> ProptestConfig {

@@ -5,7 +5,8 @@
 mod common;
 
 use common::template;
-use jawtrack::capture::{Arch, ArchPoses, Capture, FrameMasks, LabelMask, MaskMode};
+use jawtrack::arch::{Arch, ArchPoses};
+use jawtrack::capture::{Capture, FrameMasks, LabelMask, MaskMode};
 use jawtrack::energy::gpu::{GpuEnergy, GpuError};
 use jawtrack::energy::hand_counted::{camera, nothing, square};
 use jawtrack::energy::{CpuEnergy, EnergyEngine, Region, Scene};

@@ -644,9 +644,7 @@ fn skin_refuses_foreign_tracks_huge_skin_and_names_its_own_folders() {
     assert!(!out.exists());
 
     // Every vertex of one frame at 3e38 mm (written as OBJ, in place of the frame's file).
-    let count = jawtrack::capture::Mesh::load_vertices(&first)
-        .unwrap()
-        .len();
+    let count = jawtrack::mesh::Mesh::load_vertices(&first).unwrap().len();
     let kept = t.path().join("kept-frame");
     std::fs::rename(&first, &kept).unwrap();
     let huge_frame = first.with_extension("obj");

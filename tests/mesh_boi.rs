@@ -4,8 +4,8 @@
 use std::path::Path;
 use std::process::{Command, Output};
 
-use jawtrack::capture::Mesh;
-use jawtrack::capture::mesh::write_obj;
+use jawtrack::mesh::Mesh;
+use jawtrack::mesh::write_obj;
 
 fn mesh_boi(input: &Path, out: &Path) -> Output {
     Command::new(env!("CARGO_BIN_EXE_jawtrack"))

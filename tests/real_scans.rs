@@ -4,9 +4,10 @@
 mod common;
 
 use common::scan_dir;
-use jawtrack::capture::mesh::{BoiMarking, mark_boi, write_obj};
-use jawtrack::capture::{BoiSource, Capture, Mesh, OpenOptions};
+use jawtrack::capture::{Capture, OpenOptions};
 use jawtrack::energy::raster::render_labels;
+use jawtrack::mesh::{BoiMarking, mark_boi, write_obj};
+use jawtrack::mesh::{BoiSource, Mesh};
 use jawtrack::synth::{Preset, SynthOptions, generate};
 
 #[test]
@@ -44,7 +45,7 @@ fn simplification_keeps_the_boi_and_the_vertex_numbering() {
     let Some(dir) = scan_dir() else { return };
     let mut m = Mesh::load(&dir.join("upper.obj"), BoiSource::None).unwrap();
     mark_boi(&mut m, &BoiMarking::for_arch(true));
-    let s = m.simplified(jawtrack::capture::Simplify::MaxTriangles(8000));
+    let s = m.simplified(jawtrack::mesh::Simplify::MaxTriangles(8000));
     assert!(
         s.triangles.len() <= 8000 && s.triangles.len() > 4000,
         "{}",

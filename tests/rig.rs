@@ -5,10 +5,11 @@ use std::path::Path;
 use std::sync::OnceLock;
 
 use jawtrack::anatomy::MeshMetric;
-use jawtrack::capture::{BoiSource, Mesh};
+use jawtrack::formats::{JawPoses, read_jaw_poses, write_jaw_poses};
+use jawtrack::mesh::{BoiSource, Mesh};
 use jawtrack::rig::eval::{reconstruction, sampled};
 use jawtrack::rig::model::RigModel;
-use jawtrack::rig::{JawPoses, JawRig, RigSettings, read_jaw_poses, write_jaw_poses};
+use jawtrack::rig::{JawRig, RigSettings};
 use jawtrack::synth::{SynthOptions, generate};
 
 struct Fixture {
@@ -544,7 +545,7 @@ fn sample_and_ik_report_degrees_and_millimetres() {
         ]))
         .unwrap();
         let want = rig.pose(d);
-        let got: jawtrack::capture::json::PoseJson =
+        let got: jawtrack::formats::PoseJson =
             serde_json::from_value(posed["pose"].clone()).unwrap();
         let got = got.to_pose(Path::new("pose"), "pose").unwrap();
         let moved = (got.translation - want.translation).norm();

@@ -212,7 +212,7 @@ fn a_model_predicts_its_own_subject_and_survives_a_round_trip_through_its_file()
     let m = learn_single(&s, None, &rows, &quick()).unwrap();
     let tmp = tempfile::tempdir().unwrap();
     let path = tmp.path().join("model.json");
-    jawtrack::capture::write_json_atomic(&path, &m).unwrap();
+    jawtrack::io::write_json_atomic(&path, &m).unwrap();
     let back = jawtrack::skin::model::SkinModel::read(&path).unwrap();
     let f = s.skin_features(&m.skin_points, 17);
     assert_eq!(m.predict(&f), back.predict(&f));
@@ -250,7 +250,7 @@ fn a_model_predicts_its_own_subject_and_survives_a_round_trip_through_its_file()
 /// confident and wrong (flagged) in frames 205-235; `misled` is a confident frame whose teeth
 /// pose is 25 mm off, unflagged. Also the frames the fill left out of its calibration.
 fn fill_error(misled: Option<u32>) -> (f64, Vec<u32>) {
-    use jawtrack::capture::json::{FrameRecordJson, PoseJson, Status, TRACKS_FORMAT, TracksJson};
+    use jawtrack::formats::{FrameRecordJson, PoseJson, Status, TRACKS_FORMAT, TracksJson};
     let source = load("s1");
     let all: Vec<usize> = (0..source.frames.len()).collect();
     let m = learn_single(&source, None, &all, &quick()).unwrap();
@@ -298,8 +298,16 @@ fn fill_error(misled: Option<u32>) -> (f64, Vec<u32>) {
     let mut errors = Vec::new();
     for r in &filled.frames {
         let i = target.index_of(r.frame).unwrap();
-        let source = r.jaw_source.as_deref().unwrap();
-        assert_eq!(source, if lost(r.frame) { "skin" } else { "teeth" });
+        use jawtrack::formats::JawSource;
+        let source = r.jaw_source.unwrap();
+        assert_eq!(
+            source,
+            if lost(r.frame) {
+                JawSource::Skin
+            } else {
+                JawSource::Teeth
+            }
+        );
         let poses = r.poses(path).unwrap();
         if lost(r.frame) {
             errors.push(vertex_error(

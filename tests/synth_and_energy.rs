@@ -6,7 +6,8 @@
 mod common;
 
 use common::{copy_dir, template};
-use jawtrack::capture::{Arch, ArchPoses, Capture};
+use jawtrack::arch::{Arch, ArchPoses};
+use jawtrack::capture::Capture;
 use jawtrack::energy::{CpuEnergy, DEFAULT_LAMBDA, EnergyEngine, Scene};
 use jawtrack::synth::{MaskKind, Preset, SynthOptions, generate};
 use nalgebra::Vector2;

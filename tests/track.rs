@@ -8,7 +8,7 @@ use std::process::Command;
 
 use common::copy_dir;
 use jawtrack::capture::Capture;
-use jawtrack::capture::json::TracksJson;
+use jawtrack::formats::TracksJson;
 use jawtrack::synth::{MaskKind, Preset, SynthOptions, generate};
 
 /// A 48-frame clean capture (the first frames move at realistic speed), once per test binary.

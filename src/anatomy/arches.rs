@@ -5,8 +5,8 @@
 use nalgebra::Vector3;
 
 use super::stitch_rings;
-use crate::capture::Mesh;
-use crate::capture::mesh::{BoiMarking, mark_boi};
+use crate::mesh::Mesh;
+use crate::mesh::{BoiMarking, mark_boi};
 
 /// One crown type: mesiodistal width, buccolingual depth, crown height (mm), and how its
 /// cross-section narrows towards the tip (0: stays full, 1: comes to an edge or point).

@@ -2,8 +2,8 @@
 
 use nalgebra::Vector3;
 
-use crate::capture::Mesh;
 use crate::geometry::Pose;
+use crate::mesh::Mesh;
 
 /// The rest bite of two arches given each in its own frame: `upper_from_lower` at rest.
 /// Midlines aligned in x; the lower incisors 2.5 mm behind the upper ones (overjet); then the

@@ -5,8 +5,8 @@
 use nalgebra::{Matrix3, Rotation3, Vector3};
 use serde::{Deserialize, Serialize};
 
-use crate::capture::Mesh;
 use crate::geometry::Pose;
+use crate::mesh::Mesh;
 
 /// Landmarks of the mandible (lower frame, mm) and the frame they define.
 #[derive(Debug, Clone, Serialize, Deserialize, PartialEq)]

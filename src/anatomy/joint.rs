@@ -6,8 +6,8 @@
 
 use nalgebra::{Rotation3, Unit, Vector3};
 
-use crate::capture::Mesh;
 use crate::geometry::Pose;
+use crate::mesh::Mesh;
 
 /// The three intuitive controls: opening in [0, 1], lateral excursion in [−1, 1]
 /// (+1: the chin to the subject's left), protrusion in [0, 1].

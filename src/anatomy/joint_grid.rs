@@ -6,8 +6,8 @@ use nalgebra::Vector3;
 
 use super::scan_frame::{rotated, scan_frame};
 use super::{JawControls, JawModel, rest_bite};
-use crate::capture::Mesh;
 use crate::geometry::Pose;
+use crate::mesh::Mesh;
 
 /// Jaw poses over a grid of the average joint's controls (openings, lateral excursions,
 /// protrusions), the joint placed on the meshes as [`JawModel::for_arches`] places it, in the scan convention,

@@ -3,8 +3,8 @@
 
 use nalgebra::Vector3;
 
-use crate::capture::Mesh;
 use crate::geometry::Pose;
+use crate::mesh::Mesh;
 
 /// Directions whose extreme vertices make the probes: the axes, the face and the corner
 /// diagonals of a cube.

@@ -1,7 +1,7 @@
 //! Closing a stack of vertex rings into triangles: the one way crowns, the mandible's tube and
 //! its condyles are built.
 
-use crate::capture::Mesh;
+use crate::mesh::Mesh;
 
 /// Stitch `rings` consecutive rings of `segments` vertices each, starting at vertex `base`,
 /// with two triangles per quad; each ring closes on itself.

@@ -5,7 +5,7 @@
 
 use nalgebra::{Matrix3, Rotation3, Vector3};
 
-use crate::capture::Mesh;
+use crate::mesh::Mesh;
 
 /// Axes within this angle of the model's own (signed, permuted) axes are snapped to them: a
 /// scan already in a convention keeps it exactly (an arch's principal axes wander by a few

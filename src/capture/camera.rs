@@ -2,9 +2,11 @@
 
 use std::path::Path;
 
-use super::json::{self, CameraJson, check_finite, read_json};
+use super::json::CameraJson;
 use crate::error::{Error, Result, Shown};
+use crate::formats::PoseJson;
 use crate::geometry::{Camera, Distortion};
+use crate::io::{check_finite, read_json};
 
 /// Read a cameras/<name>.json file and validate every field.
 pub fn read_camera(path: &Path, name: &str) -> Result<Camera> {
@@ -87,7 +89,7 @@ pub fn camera_from_json(cj: &CameraJson, path: &Path, name: &str) -> Result<Came
                 "lens",
                 format!(
                     "`{}` is not a lens model: use \"opencv\" or \"fisheye\"",
-                    crate::capture::read::quote(other)
+                    crate::io::read::quote(other)
                 ),
             ));
         }
@@ -117,7 +119,7 @@ pub fn camera_from_json(cj: &CameraJson, path: &Path, name: &str) -> Result<Came
         }
         None => Distortion::NONE,
     };
-    let pose = json::PoseJson {
+    let pose = PoseJson {
         rotation: cj.rotation,
         translation: cj.translation,
     }

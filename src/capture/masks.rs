@@ -8,8 +8,7 @@ use std::path::Path;
 
 use crate::error::{Error, Result};
 
-pub const UPPER_BIT: u8 = 1;
-pub const LOWER_BIT: u8 = 2;
+pub use crate::arch::{LOWER_BIT, UPPER_BIT};
 /// The visible mouth interior (`masks.mouth`): the camera sees no tooth there.
 pub const MOUTH_BIT: u8 = 4;
 /// Every label bit.
@@ -136,7 +135,7 @@ impl LabelMask {
 }
 
 fn open_image(path: &Path) -> Result<image::ImageReader<std::io::BufReader<std::fs::File>>> {
-    let (file, _) = crate::capture::read::open_input(path, "mask")?;
+    let (file, _) = crate::io::read::open_input(path, "mask")?;
     image::ImageReader::new(std::io::BufReader::new(file))
         .with_guessed_format()
         .map_err(|e| Error::read(path, "mask", e))
@@ -179,7 +178,7 @@ fn png_ends(path: &Path) -> Result<PngEnds> {
     use std::io::{Read, Seek, SeekFrom};
     const SIGNATURE: [u8; 8] = [0x89, b'P', b'N', b'G', b'\r', b'\n', 0x1a, b'\n'];
     const IEND: [u8; 12] = [0, 0, 0, 0, b'I', b'E', b'N', b'D', 0xae, 0x42, 0x60, 0x82];
-    let (mut file, len) = crate::capture::read::open_input(path, "mask")?;
+    let (mut file, len) = crate::io::read::open_input(path, "mask")?;
     let io = |e| Error::read(path, "mask", e);
     let mut head = [0u8; 26];
     if len < 26 + 12 || file.read_exact(&mut head).is_err() || head[..8] != SIGNATURE {

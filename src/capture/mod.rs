@@ -1,31 +1,26 @@
 //! Reading and validating a capture (../shared/spec/capture-format.md): cameras, meshes with
 //! their boundary of interest, masks read frame by frame, init.json and ground truth.
 
-mod arch;
 mod camera;
 pub mod json;
 pub mod masks;
-pub mod mesh;
 mod paths;
 pub use paths::{Folder, capture_reads, listed_file_inside, path_inside};
-pub mod read;
-mod write;
 
 use std::collections::BTreeSet;
 use std::path::{Path, PathBuf};
 
 use nalgebra::Vector2;
 
+use crate::arch::{Arch, ArchPoses};
 use crate::error::{Error, Result, Shown};
+use crate::formats::{FramePoses, read_poses};
 use crate::geometry::{Camera, Pose, fit_rigid, triangulate};
-pub use arch::{Arch, ArchPoses, PerArch};
+use crate::io::{check_finite, read_json};
+use crate::mesh::{BoiSource, Mesh, Simplify};
 pub use camera::{camera_from_json, read_camera};
-use json::{ArchInitJson, BoiJson, CaptureJson, InitJson, TracksJson, check_finite, read_json};
+use json::{ArchInitJson, BoiJson, CaptureJson, InitJson};
 pub use masks::{LOWER_BIT, LabelMask, MaskMode, UPPER_BIT};
-pub use mesh::{BoiSource, Mesh, Simplify};
-pub use write::{
-    Reads, check_outputs, check_replaceable, encode_png, resolved, write_atomic, write_json_atomic,
-};
 
 /// A camera of the capture with what was found of its masks.
 #[derive(Debug)]
@@ -77,13 +72,6 @@ pub enum ArchInit {
 pub struct Init {
     pub upper: ArchInit,
     pub lower: ArchInit,
-}
-
-/// Ground-truth (or tracked) poses of one frame.
-#[derive(Debug, Clone, Copy)]
-pub struct FramePoses {
-    pub frame: u32,
-    pub poses: ArchPoses,
 }
 
 /// A validated capture. Masks are not held: read them frame by frame with [`Capture::load_masks`].
@@ -161,7 +149,7 @@ impl Capture {
     pub fn open_with(dir: &Path, options: OpenOptions) -> Result<Capture> {
         let capture_path = dir.join("capture.json");
         let (cj, unknown): (CaptureJson, _) =
-            json::read_json_noting_unknown(&capture_path, "capture.json")?;
+            crate::io::read_json_noting_unknown(&capture_path, "capture.json")?;
         let notes = unknown
             .iter()
             .map(|field| {
@@ -491,7 +479,7 @@ impl Capture {
                     })?;
                     // Pixels in the image can still triangulate to nonsense (rays nearly
                     // parallel): the pose must be one a pose file could give.
-                    json::PoseJson::from(&fitted)
+                    crate::formats::PoseJson::from(&fitted)
                         .to_pose(
                             &init_path,
                             &format!("{}.points (the pose they give)", arch.name()),
@@ -598,55 +586,4 @@ impl Capture {
 enum BoiRef {
     Group(String),
     List(PathBuf),
-}
-
-/// Read a pose file: `{"rotation": [[...], [...], [...]], "translation": [...]}`.
-pub fn read_pose_file(path: &Path) -> Result<Pose> {
-    let pj: json::PoseJson = read_json(path, "pose file")?;
-    pj.to_pose(path, "pose")
-}
-
-/// Read a tracks.json or gt/poses.json whole: its format checked, no frame given twice.
-pub fn read_tracks(path: &Path) -> Result<TracksJson> {
-    let tj: TracksJson = read_json(path, "poses file")?;
-    if tj.format != json::TRACKS_FORMAT {
-        return Err(Error::invalid(
-            path,
-            "format",
-            format!(
-                "expected \"{}\", found \"{}\"",
-                json::TRACKS_FORMAT,
-                tj.format
-            ),
-        ));
-    }
-    let mut seen = BTreeSet::new();
-    for (i, f) in tj.frames.iter().enumerate() {
-        if !seen.insert(f.frame) {
-            return Err(Error::invalid(
-                path,
-                format!("frames[{i}].frame"),
-                format!("frame {} is given twice", f.frame),
-            ));
-        }
-    }
-    Ok(tj)
-}
-
-/// Read gt/poses.json or a tracks.json (frame, upper, lower are required).
-pub fn read_poses(path: &Path) -> Result<Vec<FramePoses>> {
-    let tj = read_tracks(path)?;
-    tj.frames
-        .iter()
-        .enumerate()
-        .map(|(i, f)| {
-            Ok(FramePoses {
-                frame: f.frame,
-                poses: ArchPoses {
-                    upper: f.upper.to_pose(path, &format!("frames[{i}].upper"))?,
-                    lower: f.lower.to_pose(path, &format!("frames[{i}].lower"))?,
-                },
-            })
-        })
-        .collect()
 }

@@ -118,7 +118,7 @@ pub fn capture_reads(capture: &super::Capture) -> (Vec<PathBuf>, Vec<PathBuf>) {
         files.extend(entries.flatten().map(|e| e.path()).filter(|p| {
             p.extension()
                 .and_then(|e| e.to_str())
-                .is_some_and(|e| super::mesh::EXTENSIONS.contains(&e.to_ascii_lowercase().as_str()))
+                .is_some_and(|e| crate::mesh::EXTENSIONS.contains(&e.to_ascii_lowercase().as_str()))
         }));
     }
     let mut folders: Vec<PathBuf> = ["cameras", "meshes", "masks", "images", "gt"]

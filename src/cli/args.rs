@@ -7,8 +7,9 @@ use std::path::{Path, PathBuf};
 
 use anyhow::{Context, bail};
 use jawtrack::anatomy::MeshMetric;
-use jawtrack::capture::{BoiSource, Capture, Mesh, OpenOptions};
+use jawtrack::capture::{Capture, OpenOptions};
 use jawtrack::envelope::JawFrame;
+use jawtrack::mesh::{BoiSource, Mesh};
 
 /// A command-line mirror of a library enum: the variants' `///` lines are the help, and the
 /// two `From`s fail to compile when either side gains a variant the other lacks.
@@ -218,9 +219,9 @@ pub fn read_settings<'a, T: serde::de::DeserializeOwned>(
     match arg.to_str().map(str::trim_start) {
         Some(text) if text.starts_with('{') => {
             let source = Path::new("--settings");
-            Ok((jawtrack::capture::json::parse_json(text, source)?, source))
+            Ok((jawtrack::io::parse_json(text, source)?, source))
         }
-        _ => Ok((jawtrack::capture::json::read_json(arg, what)?, arg)),
+        _ => Ok((jawtrack::io::read_json(arg, what)?, arg)),
     }
 }
 
@@ -344,7 +345,7 @@ impl Landmarks {
     pub fn frame(
         &self,
         mesh_path: &std::path::Path,
-        mesh: &jawtrack::capture::Mesh,
+        mesh: &jawtrack::mesh::Mesh,
     ) -> anyhow::Result<JawFrame> {
         let condyles = match self.condyles.as_deref() {
             None => None,

@@ -97,7 +97,7 @@ pub fn run(a: Args) -> anyhow::Result<()> {
 
     println!("\n== 5. learn a jaw rig from the tracked poses (frames with status ok)");
     let rig_path = out.join("rig.json");
-    let poses = jawtrack::rig::read_jaw_poses(&tracks)?;
+    let poses = jawtrack::formats::read_jaw_poses(&tracks)?;
     // The error is measured on the mandible when the capture has one.
     let metric =
         jawtrack::anatomy::MeshMetric::new(reopened.mandible.as_ref().unwrap_or(&reopened.lower));

@@ -2,8 +2,10 @@ use std::path::PathBuf;
 use std::time::Instant;
 
 use anyhow::{Context, anyhow};
-use jawtrack::capture::{Arch, ArchPoses, Capture, read_pose_file};
+use jawtrack::arch::{Arch, ArchPoses};
+use jawtrack::capture::Capture;
 use jawtrack::energy::{DEFAULT_LAMBDA, Energy, Region, Scene, open_engine};
+use jawtrack::formats::read_pose_file;
 
 use super::args::{EngineArgs, LoadArgs};
 

@@ -105,7 +105,7 @@ pub fn run(c: Command) -> anyhow::Result<()> {
 }
 
 fn learn(a: LearnArgs) -> anyhow::Result<()> {
-    let poses = jawtrack::rig::read_jaw_poses(&a.input)?;
+    let poses = jawtrack::formats::read_jaw_poses(&a.input)?;
     let (mesh, metric) = super::args::load_mesh(&a.mesh)?;
     let frame = a.landmarks.frame(&a.mesh, &mesh)?;
     let rig = EnvelopeRig::learn(&poses.poses, &frame, &metric)?;
@@ -132,7 +132,7 @@ fn learn(a: LearnArgs) -> anyhow::Result<()> {
             let q = rig.to_upper(&Vector3::new(p[0] as f64, p[1] as f64, p[2] as f64));
             *p = [q.x as f32, q.y as f32, q.z as f32];
         }
-        jawtrack::capture::mesh::write_obj(&surface, path)?;
+        jawtrack::mesh::write_obj(&surface, path)?;
         println!("envelope surface: {}", path.display());
     }
     Ok(())
@@ -146,7 +146,7 @@ struct PoseReport {
     cube: [f64; 3],
     /// Whether the requested point was inside the envelope.
     inside: bool,
-    pose: jawtrack::capture::json::PoseJson,
+    pose: jawtrack::formats::PoseJson,
 }
 
 fn pose(a: PoseArgs) -> anyhow::Result<()> {
@@ -177,14 +177,14 @@ fn pose(a: PoseArgs) -> anyhow::Result<()> {
 
 fn reconstruct(a: ReconstructArgs) -> anyhow::Result<()> {
     let rig = EnvelopeRig::load(&a.envelope)?;
-    let poses = jawtrack::rig::read_jaw_poses(&a.input)?;
+    let poses = jawtrack::formats::read_jaw_poses(&a.input)?;
     let out: Vec<Pose> = poses.poses.iter().map(|p| rig.reconstruct(p)).collect();
     let outside = poses
         .poses
         .iter()
         .filter(|p| !rig.shield.contains(&rig.point_of(p)))
         .count();
-    jawtrack::rig::write_jaw_poses(&a.out, &poses.frames, &out)?;
+    jawtrack::formats::write_jaw_poses(&a.out, &poses.frames, &out)?;
     println!(
         "wrote {} reconstructed poses to {} ({} reference points were outside the envelope and projected)",
         out.len(),
@@ -205,7 +205,7 @@ struct EvalReport {
 
 fn evaluate(a: EvalArgs) -> anyhow::Result<()> {
     let rig = EnvelopeRig::load(&a.envelope)?;
-    let poses = jawtrack::rig::read_jaw_poses(&a.input)?;
+    let poses = jawtrack::formats::read_jaw_poses(&a.input)?;
     let (_, metric) = super::args::load_mesh(&a.mesh)?;
     let weights = jawtrack::envelope::compare::front_weights(&metric, &rig.six.frame);
     let rebuilt: Vec<Pose> = poses.poses.iter().map(|p| rig.reconstruct(p)).collect();
@@ -240,7 +240,7 @@ fn evaluate(a: EvalArgs) -> anyhow::Result<()> {
             "Envelope rig: reconstruction error and bijectivity",
             &[&report.reconstruction, &report.bijectivity],
         )?;
-        jawtrack::capture::write_json_atomic(&dir.join("envelope.json"), &report)?;
+        jawtrack::io::write_json_atomic(&dir.join("envelope.json"), &report)?;
     }
     if a.json {
         println!("{}", serde_json::to_string_pretty(&report)?);
@@ -263,7 +263,7 @@ fn evaluate(a: EvalArgs) -> anyhow::Result<()> {
 
 fn adapt(a: AdaptArgs) -> anyhow::Result<()> {
     let source = EnvelopeRig::load(&a.envelope)?;
-    let poses = jawtrack::rig::read_jaw_poses(&a.poses)?;
+    let poses = jawtrack::formats::read_jaw_poses(&a.poses)?;
     let measured: [Pose; 5] = poses.poses.as_slice().try_into().map_err(|_| {
         anyhow::anyhow!(
             "{}: expected exactly five poses ({}), found {}",

@@ -4,11 +4,12 @@ use std::path::{Path, PathBuf};
 
 use anyhow::{Context, bail};
 use jawtrack::anatomy::motion::MotionFrame;
-use jawtrack::capture::json::Status;
-use jawtrack::capture::{Capture, write_atomic};
+use jawtrack::capture::Capture;
 use jawtrack::envelope::JawFrame;
 use jawtrack::export::gltf::{Key, Part, write_gltf};
+use jawtrack::formats::Status;
 use jawtrack::geometry::Pose;
+use jawtrack::io::write_atomic;
 
 #[derive(clap::Args)]
 pub struct Args {
@@ -39,14 +40,14 @@ pub fn run(a: Args) -> anyhow::Result<()> {
     }
     let capture = Capture::open(&a.capture).context("opening the capture")?;
     let (files, folders) = jawtrack::capture::capture_reads(&capture);
-    let mut reads = jawtrack::capture::Reads {
+    let mut reads = jawtrack::io::Reads {
         files: files.iter().map(PathBuf::as_path).collect(),
         folders: folders.iter().map(PathBuf::as_path).collect(),
     };
     reads.files.push(&a.tracks);
     let outputs: Vec<&Path> = a.gltf.iter().chain(&a.csv).map(PathBuf::as_path).collect();
-    jawtrack::capture::check_outputs(&reads, &outputs)?;
-    let tracks = jawtrack::capture::read_tracks(&a.tracks)?;
+    jawtrack::io::check_outputs(&reads, &outputs)?;
+    let tracks = jawtrack::formats::read_tracks(&a.tracks)?;
     let mut frames: Vec<(u32, Status, Pose)> = Vec::new();
     for f in &tracks.frames {
         if f.status() == Status::NoData {

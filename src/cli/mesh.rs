@@ -2,8 +2,8 @@ use std::path::PathBuf;
 
 use anyhow::{Context, bail};
 use jawtrack::anatomy::scan_frame::scan_frame;
-use jawtrack::capture::mesh::{BoiMarking, mark_boi, write_obj};
-use jawtrack::capture::{BoiSource, Mesh};
+use jawtrack::mesh::{BoiMarking, mark_boi, write_obj};
+use jawtrack::mesh::{BoiSource, Mesh};
 
 #[derive(clap::Subcommand)]
 pub enum Command {
@@ -91,7 +91,7 @@ fn boi(a: BoiArgs) -> anyhow::Result<()> {
         );
     }
     if let Some(max) = a.max_triangles {
-        mesh = mesh.simplified(jawtrack::capture::Simplify::MaxTriangles(max));
+        mesh = mesh.simplified(jawtrack::mesh::Simplify::MaxTriangles(max));
     }
     write_obj(&mesh, &a.output).context("writing the mesh")?;
     println!(

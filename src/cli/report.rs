@@ -84,7 +84,7 @@ pub fn capture(c: &Capture, pixels: Option<&[[f64; 3]]>) {
             }
         );
     }
-    let describe = |name: &str, m: &jawtrack::capture::Mesh| {
+    let describe = |name: &str, m: &jawtrack::mesh::Mesh| {
         let (lo, hi) = m.bounds();
         println!(
             "mesh {name} as tracked (simplified at load): {} vertices, {} triangles, {} BOI triangles, size {:.1} x {:.1} x {:.1} mm",

@@ -2,7 +2,7 @@ use std::path::PathBuf;
 
 use anyhow::{Context, anyhow};
 use jawtrack::capture::Capture;
-use jawtrack::capture::json::TracksJson;
+use jawtrack::formats::TracksJson;
 
 #[derive(clap::Args)]
 pub struct Args {
@@ -18,7 +18,7 @@ pub struct Args {
 pub fn run(a: Args) -> anyhow::Result<()> {
     let capture = Capture::open(&a.capture)
         .with_context(|| format!("invalid capture {}", a.capture.display()))?;
-    let tracks: TracksJson = jawtrack::capture::json::read_json(&a.tracks, "tracks file")?;
+    let tracks: TracksJson = jawtrack::io::read_json(&a.tracks, "tracks file")?;
     let report = jawtrack::track::score_records(&capture, &a.tracks, &tracks.frames)?
         .ok_or_else(|| anyhow!("{}: no gt/poses.json to score against", a.capture.display()))?;
     if a.json {

@@ -4,10 +4,9 @@ use std::path::{Path, PathBuf};
 use std::time::Instant;
 
 use anyhow::Context;
-use jawtrack::capture::json::PoseJson;
-use jawtrack::capture::write_json_atomic;
+use jawtrack::io::write_json_atomic;
 use jawtrack::skin::eval::{Evaluation, evaluate};
-use jawtrack::skin::format::{FaceSequence, JAW_FORMAT, JawJson, JawPoseJson, subject_dirs};
+use jawtrack::skin::format::{FaceSequence, subject_dirs};
 use jawtrack::skin::model::{SkinModel, SkinSettings, learn_multi, learn_single, retarget_to};
 use jawtrack::skin::subject::{Subject, vertex_error};
 
@@ -85,7 +84,7 @@ impl SettingsArg {
     fn read(&self) -> anyhow::Result<SkinSettings> {
         Ok(match &self.settings {
             None => SkinSettings::default(),
-            Some(p) => jawtrack::capture::json::read_json(p, "skin settings")?,
+            Some(p) => jawtrack::io::read_json(p, "skin settings")?,
         })
     }
 }
@@ -125,12 +124,12 @@ fn model_and_face(model: &Path, face: &Path) -> anyhow::Result<(SkinModel, Subje
 /// `out` may replace neither a file the command reads nor anything in a face folder (its
 /// jaw.json is the ground truth).
 fn guard(out: &Path, files: &[&Path], faces: &[&Path]) -> anyhow::Result<()> {
-    jawtrack::capture::check_replaceable(out)?;
-    let reads = jawtrack::capture::Reads {
+    jawtrack::io::check_replaceable(out)?;
+    let reads = jawtrack::io::Reads {
         files: files.to_vec(),
         folders: faces.to_vec(),
     };
-    jawtrack::capture::check_outputs(&reads, &[out])?;
+    jawtrack::io::check_outputs(&reads, &[out])?;
     Ok(())
 }
 
@@ -211,19 +210,7 @@ pub fn run(c: Command) -> anyhow::Result<()> {
                 .map(|i| m.predict(&s.skin_features(&m.skin_points, i)))
                 .collect();
             let per_frame = clock.elapsed().as_secs_f64() * 1e3 / poses.len().max(1) as f64;
-            let jaw = JawJson {
-                format: JAW_FORMAT.into(),
-                poses: s
-                    .frames
-                    .iter()
-                    .zip(&poses)
-                    .map(|(&frame, p)| JawPoseJson {
-                        frame,
-                        pose: PoseJson::from(p),
-                    })
-                    .collect(),
-            };
-            write_json_atomic(&out, &jaw)?;
+            jawtrack::formats::write_jaw_poses(&out, &s.frames, &poses)?;
             println!(
                 "predicted {} frames, {per_frame:.3} ms a frame (reading excluded)",
                 poses.len()
@@ -256,7 +243,7 @@ pub fn run(c: Command) -> anyhow::Result<()> {
             let settings = settings.read()?;
             guard(&out, &[&model, &tracks], &[&face])?;
             let (m, s) = model_and_face(&model, &face)?;
-            let t = jawtrack::capture::read_tracks(&tracks)?;
+            let t = jawtrack::formats::read_tracks(&tracks)?;
             let (filled, r) = jawtrack::skin::fill::fill(&m, &s, &t, &tracks, &settings.retarget)?;
             write_json_atomic(&out, &filled)?;
             println!(
@@ -284,7 +271,7 @@ pub fn run(c: Command) -> anyhow::Result<()> {
         } => {
             let settings = settings.read()?;
             if let Some(p) = &plot {
-                jawtrack::capture::check_replaceable(p)?;
+                jawtrack::io::check_replaceable(p)?;
             }
             let dirs = subject_dirs(&dir)?;
             let subjects = dirs

@@ -41,7 +41,7 @@ pub struct Args {
 
 pub fn run(a: Args) -> anyhow::Result<()> {
     // The rig file says which rig it is.
-    let head: serde_json::Value = jawtrack::capture::json::read_json(&a.rig, "rig file")?;
+    let head: serde_json::Value = jawtrack::io::read_json(&a.rig, "rig file")?;
     let rig: Box<dyn ThreeParameterRig + Send + Sync> =
         if head["format"].as_str() == Some(jawtrack::envelope::model::ENVELOPE_FORMAT) {
             Box::new(EnvelopeRig::load(&a.rig)?)

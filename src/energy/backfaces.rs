@@ -16,8 +16,8 @@
 
 use std::collections::HashMap;
 
-use crate::capture::Mesh;
-use crate::capture::mesh::signed_volume;
+use crate::mesh::Mesh;
+use crate::mesh::signed_volume;
 
 /// Which snapped signed area (see `raster`) marks a face turned away from the camera. With
 /// image y pointing down and the camera looking along +z, a face whose normal (right-hand rule

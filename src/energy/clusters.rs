@@ -4,8 +4,8 @@
 
 use std::ops::Range;
 
-use crate::capture::Mesh;
-use crate::capture::mesh::bounds;
+use crate::mesh::Mesh;
+use crate::mesh::bounds;
 
 /// Faces per cluster.
 pub const CLUSTER_FACES: usize = 32;

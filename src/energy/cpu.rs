@@ -14,10 +14,12 @@ use super::histogram;
 use super::raster::{self, Bounds, CLASS_BODY, CLASS_BOI, Placed, Target};
 use super::relevance::{LabelledTiles, Relevance};
 use super::{Counts, Energy, EnergyEngine, MaskTotals, Region, Scene, frame_totals};
+use crate::arch::{Arch, ArchPoses, PerArch};
 use crate::capture::masks::MOUTH_BIT;
-use crate::capture::{Arch, ArchPoses, FrameMasks, LOWER_BIT, LabelMask, Mesh, PerArch, UPPER_BIT};
+use crate::capture::{FrameMasks, LOWER_BIT, LabelMask, UPPER_BIT};
 use crate::error::Result;
 use crate::geometry::{Camera, Pose};
+use crate::mesh::Mesh;
 
 /// A frame's mask for one camera with its per-arch pixel totals.
 struct PreparedMask {
@@ -289,8 +291,9 @@ impl EnergyEngine for CpuEnergy {
 mod tests {
     use super::super::{MASK_MOUTH, MASK_NONE, MASK_OTHER, MASK_OWN, Weights};
     use super::*;
-    use crate::capture::{MaskMode, Mesh};
+    use crate::capture::MaskMode;
     use crate::geometry::Pose;
+    use crate::mesh::Mesh;
     use nalgebra::Vector3;
 
     use super::super::hand_counted::{camera, nothing as far_away, square as square_mesh};

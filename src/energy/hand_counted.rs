@@ -2,8 +2,8 @@
 //! `property.rs`): a 100x80 camera at the origin with f = 100 px, so a 1 mm step at z = 100 mm
 //! is exactly one pixel, and a 20 mm square whose top half is boundary of interest.
 
-use crate::capture::Mesh;
 use crate::geometry::{Camera, Pose};
+use crate::mesh::Mesh;
 
 /// 100x80 pixels, f = 100, principal point (50, 40), at the world origin looking along +z.
 pub fn camera() -> Camera {

@@ -6,8 +6,9 @@ use super::raster::{CLASS_BODY, CLASS_BOI, Target};
 use super::{
     BINS, Counts, MASK_MOUTH, MASK_NONE, MASK_OTHER, MASK_OWN, MaskTotals, counts_with_outside,
 };
+use crate::arch::Arch;
+use crate::capture::LabelMask;
 use crate::capture::masks::MOUTH_BIT;
-use crate::capture::{Arch, LabelMask};
 use crate::geometry::Camera;
 
 /// The bins over the whole mask: counted inside the target, derived outside it.

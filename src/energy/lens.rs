@@ -263,7 +263,7 @@ mod tests {
     /// An independent rendering through the lens: the labels drawn on a pinhole canvas three
     /// times finer that covers what the distorted image sees, then each distorted pixel takes
     /// the label at its undistorted position (the nearest canvas pixel, at most 1/6 pixel off).
-    fn through_a_canvas(cam: &Camera, items: &[(&crate::capture::Mesh, &Pose, u8, u8)]) -> Vec<u8> {
+    fn through_a_canvas(cam: &Camera, items: &[(&crate::mesh::Mesh, &Pose, u8, u8)]) -> Vec<u8> {
         const FINE: f64 = 3.0;
         let (w, h) = (cam.width as usize, cam.height as usize);
         let undistorted: Vec<Vector2<f64>> = (0..w * h)

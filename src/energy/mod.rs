@@ -16,10 +16,12 @@ pub mod raster;
 pub mod relevance;
 pub mod target;
 
+use crate::arch::{Arch, ArchPoses, PerArch};
 use crate::capture::masks::MOUTH_BIT;
-use crate::capture::{Arch, ArchPoses, Capture, FrameMasks, MaskMode, Mesh, PerArch};
+use crate::capture::{Capture, FrameMasks, MaskMode};
 use crate::error::Result;
 use crate::geometry::Camera;
+use crate::mesh::Mesh;
 
 pub use backend::{Backend, OpenedEngine, open_engine};
 pub use cpu::CpuEnergy;

@@ -10,8 +10,8 @@
 
 use super::backfaces::AwaySign;
 use super::lens::{Lens, bounds_through};
-use crate::capture::Mesh;
 use crate::geometry::{Camera, Pose};
+use crate::mesh::Mesh;
 
 pub const SUBPIXEL_BITS: u32 = 8;
 const SUBPIXEL: f64 = (1 << SUBPIXEL_BITS) as f64;

@@ -17,7 +17,7 @@ pub use traditional::{Dofs, TraditionalRig};
 pub(crate) mod pose_serde {
     use serde::{Deserialize, Deserializer, Serialize, Serializer};
 
-    use crate::capture::json::PoseJson;
+    use crate::formats::PoseJson;
     use crate::geometry::Pose;
 
     pub fn serialize<S: Serializer>(p: &Pose, s: S) -> Result<S::Ok, S::Error> {
@@ -26,7 +26,7 @@ pub(crate) mod pose_serde {
 
     pub fn deserialize<'de, D: Deserializer<'de>>(d: D) -> Result<Pose, D::Error> {
         let pj = PoseJson::deserialize(d)?;
-        let limit = crate::capture::json::MAX_TRANSLATION_MM;
+        let limit = crate::formats::MAX_TRANSLATION_MM;
         if pj
             .translation
             .iter()
@@ -38,7 +38,7 @@ pub(crate) mod pose_serde {
             )));
         }
         let rotation =
-            Pose::rotation_from_rows(&pj.rotation, crate::capture::json::ROTATION_TOLERANCE)
+            Pose::rotation_from_rows(&pj.rotation, crate::formats::ROTATION_TOLERANCE)
                 .ok_or_else(|| serde::de::Error::custom("rotation: not a rotation matrix"))?;
         Ok(Pose::new(rotation, nalgebra::Vector3::from(pj.translation)))
     }

@@ -11,10 +11,10 @@ use super::shield::{Shield, ShieldError};
 use super::traditional::{Dofs, TraditionalRig};
 use crate::anatomy::MeshMetric;
 use crate::anatomy::jaw_frame::{FrameError, JawFrame};
-use crate::capture::json::read_json;
-use crate::capture::write_json_atomic;
 use crate::error::{Error, Result};
 use crate::geometry::Pose;
+use crate::io::read_json;
+use crate::io::write_json_atomic;
 
 pub const ENVELOPE_FORMAT: &str = "jawtrack-envelope/1";
 

@@ -13,7 +13,7 @@
 use nalgebra::Vector3;
 use serde::{Deserialize, Serialize};
 
-use crate::capture::Mesh;
+use crate::mesh::Mesh;
 
 #[derive(Debug, Clone, Serialize, Deserialize, PartialEq)]
 pub struct Shield {

@@ -7,8 +7,8 @@ use base64::Engine as _;
 use gltf_json as json;
 use json::validation::{Checked::Valid, USize64};
 
-use crate::capture::Mesh;
 use crate::geometry::Pose;
+use crate::mesh::Mesh;
 
 /// A mesh to write, with its name and colour (linear RGBA).
 pub struct Part<'a> {

@@ -12,9 +12,9 @@
 use std::collections::BTreeMap;
 use std::path::{Path, PathBuf};
 
-use crate::capture::read::read_text;
-use crate::capture::write_atomic;
 use crate::error::{Error, Result};
+use crate::io::read::read_text;
+use crate::io::write_atomic;
 
 /// The class a source label becomes.
 #[derive(Debug, Clone, Copy, PartialEq, Eq, PartialOrd, Ord)]
@@ -366,7 +366,7 @@ pub fn import_masks(
             }
         }
         let (w, h) = size.expect("a frame has a file");
-        let png = crate::capture::encode_png(&out, w, h, image::ExtendedColorType::L8);
+        let png = crate::io::encode_png(&out, w, h, image::ExtendedColorType::L8);
         write_atomic(&out_dir.join(format!("{frame:06}.png")), &png)?;
         imported.frames += 1;
     }

@@ -196,7 +196,7 @@ pub fn offsets(events: &[(String, Event)]) -> Result<Vec<CameraSync>> {
 /// Set `frames.offsets` in a capture.json to these offsets (every other field kept; the
 /// file is replaced atomically).
 pub fn write_offsets(capture_json: &Path, syncs: &[CameraSync]) -> Result<()> {
-    let text = crate::capture::read::read_text(capture_json, "capture file")?;
+    let text = crate::io::read::read_text(capture_json, "capture file")?;
     let mut doc: serde_json::Value = serde_json::from_str(&text).map_err(|error| Error::Json {
         path: capture_json.to_path_buf(),
         field: ".".into(),
@@ -211,15 +211,14 @@ pub fn write_offsets(capture_json: &Path, syncs: &[CameraSync]) -> Result<()> {
         .map(|c| (c.name.clone(), c.offset.into()))
         .collect();
     frames.insert("offsets".into(), offsets.into());
-    crate::capture::write_json_atomic(capture_json, &doc)
+    crate::io::write_json_atomic(capture_json, &doc)
 }
 
 /// The cameras to sync: capture.json's when there is one, else every folder in images/.
 pub fn camera_names(capture: &Path) -> Result<Vec<String>> {
     let cj = capture.join("capture.json");
     if cj.is_file() {
-        let c: crate::capture::json::CaptureJson =
-            crate::capture::json::read_json(&cj, "capture file")?;
+        let c: crate::capture::json::CaptureJson = crate::io::read_json(&cj, "capture file")?;
         return Ok(c.cameras);
     }
     let images = capture.join("images");

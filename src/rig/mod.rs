@@ -7,7 +7,6 @@ pub mod animate;
 pub mod coupled;
 pub mod eval;
 pub mod ik;
-pub mod input;
 mod lbfgs;
 pub mod model;
 mod network;
@@ -17,7 +16,6 @@ pub mod ranges;
 pub mod three;
 pub mod units;
 
-pub use input::{JawPoses, read_jaw_poses, write_jaw_poses};
 pub use model::{JawRig, RigError, RigSettings};
 pub use nlpca::{Nlpca, NlpcaSettings};
 pub use three::ThreeParameterRig;

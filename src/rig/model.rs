@@ -31,11 +31,11 @@ use super::ranges::{RangeError, Ranges};
 use crate::anatomy::Coordinates;
 use crate::anatomy::MeshMetric;
 use crate::anatomy::Pca;
-use crate::capture::json::read_json;
-use crate::capture::write_json_atomic;
 use crate::error::{Error, Result};
 use crate::geometry::Pose;
 use crate::geometry::least_squares::levenberg_marquardt;
+use crate::io::read_json;
+use crate::io::write_json_atomic;
 use crate::settings::Rules;
 
 pub const RIG_FORMAT: &str = "jawtrack-rig/1";
@@ -489,7 +489,7 @@ impl JawRig {
                 scale: net.scale,
             };
         }
-        crate::capture::json::check_finite(path, "input.mean", &rig.input.mean)?;
+        crate::io::check_finite(path, "input.mean", &rig.input.mean)?;
         if !(rig.input.scale.is_finite() && rig.input.scale > 0.0) {
             return Err(Error::invalid(
                 path,
@@ -528,7 +528,7 @@ impl JawRig {
             a.rest.to_pose(path, "anatomy.rest")?;
             let f = &a.frame;
             let points = [f.condyle_left, f.condyle_right, f.reference];
-            crate::capture::json::check_finite(path, "anatomy.frame", points.as_flattened())?;
+            crate::io::check_finite(path, "anatomy.frame", points.as_flattened())?;
             f.axes()
                 .map_err(|e| Error::invalid(path, "anatomy.frame", e.to_string()))?;
         }

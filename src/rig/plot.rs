@@ -5,8 +5,8 @@ use std::path::Path;
 use plotters::prelude::*;
 
 use super::eval::{Reconstruction, Sampled, Series};
-use crate::capture::{write_atomic, write_json_atomic};
 use crate::error::{Error, Result};
+use crate::io::{write_atomic, write_json_atomic};
 
 const BINS: usize = 30;
 

@@ -9,9 +9,9 @@ use super::JawRig;
 use super::three::{ThreeParameterRig, solve_animator};
 use crate::anatomy::JawFrame;
 use crate::anatomy::motion::{Anatomical, MotionFrame};
-use crate::capture::Mesh;
-use crate::capture::json::PoseJson;
+use crate::formats::PoseJson;
 use crate::geometry::Pose;
+use crate::mesh::Mesh;
 
 /// What the rig file keeps to speak anatomical units: the jaw frame's landmarks (lower frame)
 /// and the rest bite (`upper_from_lower`, the most closed training pose).

@@ -16,14 +16,13 @@ use std::path::Path;
 
 use rayon::prelude::*;
 
+use crate::arch::ArchPoses;
 use crate::capture::masks::MOUTH_BIT;
-use crate::capture::{
-    ArchPoses, Capture, FrameMasks, LOWER_BIT, LabelMask, MaskMode, UPPER_BIT, encode_png,
-    write_atomic,
-};
+use crate::capture::{Capture, FrameMasks, LOWER_BIT, LabelMask, MaskMode, UPPER_BIT};
 use crate::energy::raster::render_labels;
 use crate::error::{Error, Result};
 use crate::geometry::Camera;
+use crate::io::{encode_png, write_atomic};
 use crate::track::MaskSource;
 use picture::{Models, Outcome, segment_picture};
 pub use settings::SegmentSettings;

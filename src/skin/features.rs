@@ -8,8 +8,8 @@ use nalgebra::Vector3;
 use rayon::prelude::*;
 use serde::{Deserialize, Serialize};
 
-use crate::capture::Mesh;
 use crate::geometry::Pose;
+use crate::mesh::Mesh;
 
 /// How the skin feature points are chosen: a documented setting (`skin learn --features`).
 #[derive(Debug, Clone, Copy, PartialEq, Serialize, Deserialize)]

@@ -12,8 +12,8 @@ use serde::Serialize;
 use super::model::{SkinModel, retarget_on};
 use super::retarget::{RetargetReport, RetargetSettings};
 use super::subject::{Subject, bone_point_error};
-use crate::capture::json::{PoseJson, Status, TracksJson};
 use crate::error::{Error, Result};
+use crate::formats::{JawSource, PoseJson, Status, TracksJson};
 
 /// Calibration frames chosen from the confident ones, at most.
 pub const MAX_CALIBRATION: usize = 24;
@@ -127,7 +127,7 @@ pub fn fill(
     let mut skin = 0;
     for r in &mut out.frames {
         if r.status() == Status::Ok {
-            r.jaw_source = Some("teeth".into());
+            r.jaw_source = Some(JawSource::Teeth);
             continue;
         }
         let Some(i) = subject.index_of(r.frame) else {
@@ -139,7 +139,7 @@ pub fn fill(
             .to_pose(tracks_path, &format!("frames[{}].upper", r.frame))?;
         r.lower = PoseJson::from(&upper.compose(&jaw));
         r.jaw = Some(PoseJson::from(&jaw));
-        r.jaw_source = Some("skin".into());
+        r.jaw_source = Some(JawSource::Skin);
         skin += 1;
     }
     Ok((

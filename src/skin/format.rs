@@ -8,13 +8,14 @@ use std::path::{Path, PathBuf};
 
 use serde::{Deserialize, Serialize};
 
-use crate::capture::json::{PoseJson, read_json_noting_unknown};
-use crate::capture::{BoiSource, Folder, Mesh, path_inside};
+use crate::capture::{Folder, path_inside};
 use crate::error::{Error, Result};
+use crate::formats::jaw::read_jaw_file;
 use crate::geometry::Pose;
+use crate::io::read_json_noting_unknown;
+use crate::mesh::{BoiSource, Mesh};
 
 pub const FACE_FORMAT: &str = "jawtrack-face/1";
-pub const JAW_FORMAT: &str = "jawtrack-jaw/1";
 /// More frames than any capture has (over 11 hours at 24 fps): a count beyond it is a typo or
 /// a hostile header, refused before anything is allocated for it.
 pub const MAX_FRAMES: u32 = 1_000_000;
@@ -63,19 +64,6 @@ impl CalibrationJson {
             ("backward", self.backward),
         ]
     }
-}
-
-#[derive(Debug, Clone, Serialize, Deserialize)]
-pub struct JawJson {
-    pub format: String,
-    pub poses: Vec<JawPoseJson>,
-}
-
-#[derive(Debug, Clone, Serialize, Deserialize)]
-pub struct JawPoseJson {
-    pub frame: u32,
-    #[serde(flatten)]
-    pub pose: PoseJson,
 }
 
 /// A face sequence as read: meshes loaded, frames read on demand.
@@ -232,32 +220,16 @@ impl FaceSequence {
 }
 
 fn read_jaw(path: &Path, in_range: &dyn Fn(u32) -> bool) -> Result<BTreeMap<u32, Pose>> {
-    let (json, _): (JawJson, _) = read_json_noting_unknown(path, "jaw poses")?;
-    if json.format != JAW_FORMAT {
-        return Err(Error::invalid(
-            path,
-            "format",
-            format!("is `{}`, expected `{JAW_FORMAT}`", json.format),
-        ));
-    }
     let mut poses = BTreeMap::new();
-    for (i, p) in json.poses.iter().enumerate() {
-        let field = format!("poses[{i}]");
-        if !in_range(p.frame) {
+    for (i, (frame, pose)) in read_jaw_file(path)?.into_iter().enumerate() {
+        if !in_range(frame) {
             return Err(Error::invalid(
                 path,
-                format!("{field}.frame"),
-                format!("frame {} is not in the sequence", p.frame),
+                format!("poses[{i}].frame"),
+                format!("frame {frame} is not in the sequence"),
             ));
         }
-        let pose = p.pose.to_pose(path, &field)?;
-        if poses.insert(p.frame, pose).is_some() {
-            return Err(Error::invalid(
-                path,
-                format!("{field}.frame"),
-                format!("frame {} is listed twice", p.frame),
-            ));
-        }
+        poses.insert(frame, pose);
     }
     Ok(poses)
 }

@@ -12,8 +12,8 @@ use super::retarget::{
     FeatureTransform, RetargetReport, RetargetSettings, align_globally, apply, retarget_chosen,
 };
 use super::subject::{Subject, jaw_from_bone};
-use crate::capture::json::PoseJson;
 use crate::error::{Error, Result};
+use crate::formats::PoseJson;
 use crate::geometry::Pose;
 
 /// A subject's rows of skin features and of bone features.
@@ -107,7 +107,7 @@ impl SkinModel {
 
     /// Read and check a model file.
     pub fn read(path: &std::path::Path) -> Result<SkinModel> {
-        let m: SkinModel = crate::capture::json::read_json(path, "skin model")?;
+        let m: SkinModel = crate::io::read_json(path, "skin model")?;
         if m.format != MODEL_FORMAT {
             return Err(Error::invalid(
                 path,

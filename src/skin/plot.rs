@@ -6,8 +6,8 @@ use std::path::Path;
 use plotters::prelude::*;
 
 use super::eval::Evaluation;
-use crate::capture::write_atomic;
 use crate::error::{Error, Result};
+use crate::io::write_atomic;
 
 fn draw_error(path: &Path, e: impl std::fmt::Display) -> Error {
     Error::Write {

@@ -6,9 +6,9 @@ use rayon::prelude::*;
 
 use super::features::{SkinPoint, bone_features, bone_points, skin_features};
 use super::format::{CalibrationJson, FaceSequence};
-use crate::capture::Mesh;
 use crate::error::{Error, Result};
 use crate::geometry::Pose;
+use crate::mesh::Mesh;
 
 /// The mean skin displacement (mm) below which a frame counts as the neutral. The rest pose of
 /// a subject is the jaw pose of the frame nearest the neutral; one farther than this is used

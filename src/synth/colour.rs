@@ -8,9 +8,10 @@ use rand::RngExt;
 
 use super::masks::{self, LipLine};
 use super::{LOWER_LABEL, MOUTH_LABEL, UPPER_LABEL};
-use crate::capture::{ArchPoses, Mesh};
+use crate::arch::ArchPoses;
 use crate::energy::raster::render_target;
 use crate::geometry::Camera;
+use crate::mesh::Mesh;
 
 /// What the camera sees of the subject: one frame's colour picture and its true labels.
 pub struct ColourFrame {

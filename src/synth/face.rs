@@ -14,14 +14,12 @@ use rand_chacha::ChaCha8Rng;
 use rayon::prelude::*;
 
 use crate::anatomy::{JawControls, JawModel, procedural_arch, rest_bite};
-use crate::capture::json::PoseJson;
-use crate::capture::mesh::write_obj;
-use crate::capture::{Mesh, write_json_atomic};
 use crate::error::{Error, Result};
 use crate::geometry::{Pose, so3_exp};
-use crate::skin::format::{
-    CalibrationJson, FACE_FORMAT, FaceFramesJson, FaceJson, JAW_FORMAT, JawJson, JawPoseJson,
-};
+use crate::io::write_json_atomic;
+use crate::mesh::Mesh;
+use crate::mesh::write_obj;
+use crate::skin::format::{CalibrationJson, FACE_FORMAT, FaceFramesJson, FaceJson};
 
 /// The skin grid: rows from under the chin to the nose, columns from ear to ear.
 const ROWS: usize = 36;
@@ -547,18 +545,9 @@ fn write_subject(
             Ok((jaw, opening, skin_mm))
         })
         .collect::<Result<_>>()?;
-    let jaw = JawJson {
-        format: JAW_FORMAT.into(),
-        poses: results
-            .iter()
-            .enumerate()
-            .map(|(f, (p, _, _))| JawPoseJson {
-                frame: f as u32,
-                pose: PoseJson::from(p),
-            })
-            .collect(),
-    };
-    write_json_atomic(&dir.join("jaw.json"), &jaw)?;
+    let frames: Vec<u32> = (0..results.len() as u32).collect();
+    let poses: Vec<Pose> = results.iter().map(|(p, _, _)| *p).collect();
+    crate::formats::write_jaw_poses(&dir.join("jaw.json"), &frames, &poses)?;
     let face = FaceJson {
         format: FACE_FORMAT.into(),
         frames: FaceFramesJson {

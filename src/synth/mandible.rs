@@ -6,7 +6,7 @@
 use nalgebra::Vector3;
 
 use crate::anatomy::{JawModel, stitch_rings};
-use crate::capture::Mesh;
+use crate::mesh::Mesh;
 
 const RING: usize = 12;
 

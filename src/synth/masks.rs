@@ -6,8 +6,9 @@
 use nalgebra::Vector3;
 use rand::RngExt;
 
-use crate::capture::{Arch, ArchPoses, Mesh};
+use crate::arch::{Arch, ArchPoses};
 use crate::geometry::Camera;
+use crate::mesh::Mesh;
 
 /// A lip edge: points along the front of an arch, in that arch's frame.
 #[derive(Debug, Clone)]

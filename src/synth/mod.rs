@@ -18,12 +18,13 @@ use rand::{RngExt, SeedableRng};
 use rand_chacha::ChaCha8Rng;
 
 use crate::anatomy::{JawControls, JawModel, procedural_arch, rest_bite};
+use crate::arch::{Arch, ArchPoses};
 use crate::capture::json::CameraJson;
-use crate::capture::mesh::{BoiMarking, mark_boi};
-use crate::capture::{Arch, ArchPoses, BoiSource, Mesh};
 use crate::energy::raster::render_labels;
 use crate::error::{Error, Result};
 use crate::geometry::{Camera, Distortion, Pose};
+use crate::mesh::{BoiMarking, mark_boi};
+use crate::mesh::{BoiSource, Mesh};
 use exercise::exercise_controls;
 use write::write_capture;
 
@@ -255,7 +256,7 @@ fn load_rig(rig: Option<&Path>) -> Result<Vec<(Camera, String)>> {
                 .ok_or_else(|| Error::invalid(path, "file name", "is not valid UTF-8"))?;
             let text =
                 std::fs::read_to_string(path).map_err(|e| Error::read(path, "camera file", e))?;
-            let cj: CameraJson = crate::capture::json::parse_json(&text, path)?;
+            let cj: CameraJson = crate::io::parse_json(&text, path)?;
             Ok((crate::capture::camera_from_json(&cj, path, name)?, text))
         })
         .collect()
@@ -481,11 +482,11 @@ fn render_mask(
 }
 
 fn encode_png(grey: &[u8], width: u32, height: u32) -> Vec<u8> {
-    crate::capture::encode_png(grey, width, height, image::ExtendedColorType::L8)
+    crate::io::encode_png(grey, width, height, image::ExtendedColorType::L8)
 }
 
 fn encode_png_rgb(rgb: &[u8], width: u32, height: u32) -> Vec<u8> {
-    crate::capture::encode_png(rgb, width, height, image::ExtendedColorType::Rgb8)
+    crate::io::encode_png(rgb, width, height, image::ExtendedColorType::Rgb8)
 }
 
 /// Write a synthetic capture to `out`. `progress` is called once per finished frame.

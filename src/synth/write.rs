@@ -8,13 +8,14 @@ use rand::{RngExt, SeedableRng};
 use rand_chacha::ChaCha8Rng;
 use rayon::prelude::*;
 
+use crate::arch::ArchPoses;
 use crate::capture::json::{
-    ArchInitJson, BoiJson, CameraJson, CaptureJson, FrameRecordJson, FramesJson, InitJson,
-    MasksJson, MeshesJson, TracksJson,
+    ArchInitJson, BoiJson, CameraJson, CaptureJson, FramesJson, InitJson, MasksJson, MeshesJson,
 };
-use crate::capture::mesh::write_obj;
-use crate::capture::{ArchPoses, write_atomic, write_json_atomic};
 use crate::error::Result;
+use crate::formats::{FrameRecordJson, TracksJson};
+use crate::io::{write_atomic, write_json_atomic};
+use crate::mesh::write_obj;
 
 use super::colour::{Exposure, render_colour};
 use super::{
@@ -143,7 +144,7 @@ pub(super) fn write_capture(
         &dir.join("gt/poses.json"),
         &TracksJson {
             fingerprint: None,
-            format: crate::capture::json::TRACKS_FORMAT.into(),
+            format: crate::formats::TRACKS_FORMAT.into(),
             frames: records,
         },
     )?;

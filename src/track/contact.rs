@@ -11,8 +11,8 @@
 
 use nalgebra::Vector3;
 
-use crate::capture::Mesh;
 use crate::geometry::Pose;
+use crate::mesh::Mesh;
 
 /// Column width of the height map (mm), and the most columns along a side (a mesh with stray
 /// vertices far away gets wider columns, not a huge map).
@@ -159,7 +159,7 @@ impl Contact {
 mod tests {
     use super::*;
     use crate::anatomy::{procedural_arch, rest_bite};
-    use crate::capture::ArchPoses;
+    use crate::arch::ArchPoses;
 
     const SETTINGS: ContactSettings = ContactSettings {
         weight: 100.0,

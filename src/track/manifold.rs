@@ -6,8 +6,8 @@
 use nalgebra::Vector6;
 
 use crate::anatomy::{Coordinates, MeshMetric, Pca};
-use crate::capture::Mesh;
 use crate::geometry::Pose;
+use crate::mesh::Mesh;
 
 #[derive(Debug, Clone)]
 pub struct JawManifold {

@@ -8,12 +8,12 @@ use std::io::Write;
 use std::path::{Path, PathBuf};
 use std::time::{Duration, Instant};
 
-use serde_json::json;
-
 use super::sequence::FrameResult;
-use crate::capture::json::{FrameRecordJson, PoseJson, TRACKS_FORMAT, TracksJson};
-use crate::capture::{check_replaceable, write_json_atomic};
 use crate::error::{Error, Result};
+use crate::formats::{
+    ArchEnergyJson, FrameRecordJson, PerArchJson, PoseJson, TRACKS_FORMAT, TracksJson,
+};
+use crate::io::{check_replaceable, write_json_atomic};
 
 const REWRITE_EVERY: Duration = Duration::from_secs(1);
 
@@ -35,20 +35,26 @@ struct JournalHead {
 
 /// The record of a tracked frame, as the spec writes it.
 pub fn record(r: &FrameResult) -> FrameRecordJson {
-    let arch_energy = |e: &crate::energy::Energy, lambda: f64| json!({"total": e.total(lambda), "uncovered": e.uncovered(), "boi_outside": e.boi_outside(), "cross": e.cross(), "over_mouth": e.over_mouth()});
-    let lambda = crate::energy::DEFAULT_LAMBDA;
+    let arch_energy = |e: &crate::energy::Energy| ArchEnergyJson {
+        boi_outside: e.boi_outside(),
+        cross: Some(e.cross()),
+        over_mouth: Some(e.over_mouth()),
+        total: e.total(crate::energy::DEFAULT_LAMBDA),
+        uncovered: e.uncovered(),
+    };
     FrameRecordJson {
         frame: r.frame,
         upper: PoseJson::from(&r.poses.upper),
         lower: PoseJson::from(&r.poses.lower),
         jaw: Some(PoseJson::from(&r.poses.jaw())),
-        energy: r.energies.as_ref().map(
-            |[u, l]| json!({"upper": arch_energy(u, lambda), "lower": arch_energy(l, lambda)}),
-        ),
-        area_error: r
-            .energies
-            .as_ref()
-            .map(|[u, l]| json!({"upper": u.area_error(), "lower": l.area_error()})),
+        energy: r.energies.as_ref().map(|[u, l]| PerArchJson {
+            lower: arch_energy(l),
+            upper: arch_energy(u),
+        }),
+        area_error: r.energies.as_ref().map(|[u, l]| PerArchJson {
+            lower: Some(l.area_error()),
+            upper: Some(u.area_error()),
+        }),
         status: Some(r.status),
         jaw_source: None,
     }
@@ -89,7 +95,7 @@ impl TracksWriter {
                 check_records(&journal_path, &kept, &frames, |i| format!("line {}", i + 2))?;
                 records = kept;
             } else if path.exists() {
-                let tj: TracksJson = crate::capture::json::read_json(path, "tracks file")?;
+                let tj: TracksJson = crate::io::read_json(path, "tracks file")?;
                 check_fingerprint(path, "fingerprint", tj.fingerprint.as_deref(), fingerprint)?;
                 check_records(path, &tj.frames, &frames, |i| format!("frames[{i}]"))?;
                 records = tj.frames;
@@ -201,7 +207,7 @@ fn check_fingerprint(path: &Path, field: &str, written: Option<&str>, now: &str)
 /// cut off by an interruption (no newline after it) may fail to parse, and is dropped; any
 /// other line that does not parse is an error naming it.
 fn read_journal(path: &Path) -> Result<(Option<String>, Vec<FrameRecordJson>)> {
-    let text = crate::capture::read::read_text(path, "journal")?;
+    let text = crate::io::read::read_text(path, "journal")?;
     let mut lines: Vec<&str> = text.split_inclusive('\n').collect();
     let head = lines
         .first()

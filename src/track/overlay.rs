@@ -5,10 +5,12 @@
 
 use std::path::Path;
 
+use crate::arch::ArchPoses;
 use crate::capture::masks::{LabelMask, MOUTH_BIT};
-use crate::capture::{ArchPoses, Capture, FrameMasks, LOWER_BIT, UPPER_BIT, write_atomic};
+use crate::capture::{Capture, FrameMasks, LOWER_BIT, UPPER_BIT};
 use crate::energy::raster::{CLASS_BODY, CLASS_BOI, render_labels};
 use crate::error::{Error, Result};
+use crate::io::write_atomic;
 
 /// The models' colours: the paper's overlay draws both arches red; a viewer telling the arches
 /// apart draws the lower one in yellow.

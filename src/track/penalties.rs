@@ -4,7 +4,7 @@
 
 use super::contact::Contact;
 use super::manifold::JawManifold;
-use crate::capture::ArchPoses;
+use crate::arch::ArchPoses;
 
 #[derive(Debug, Clone)]
 pub struct Penalties {

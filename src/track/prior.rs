@@ -10,8 +10,8 @@ use nalgebra::Vector3;
 
 use super::search::RADIUS_MM;
 use crate::anatomy::joint_grid;
-use crate::capture::Mesh;
 use crate::geometry::Pose;
+use crate::mesh::Mesh;
 
 /// The jaw prior's candidates (jaw poses, upper_from_lower, in the capture's model frames).
 #[derive(Debug, Clone)]

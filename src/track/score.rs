@@ -2,9 +2,11 @@
 //! upper), the mean vertex distance (mm), rotation error (deg) and translation error (mm), and
 //! the paper's area error; median, 95th percentile and maximum over frames.
 
-use crate::capture::json::{FrameRecordJson, Status};
-use crate::capture::{Arch, ArchPoses, Capture, Mesh};
+use crate::arch::{Arch, ArchPoses};
+use crate::capture::Capture;
+use crate::formats::{FrameRecordJson, Status};
 use crate::geometry::Pose;
+use crate::mesh::Mesh;
 
 pub use crate::stats::Stats;
 
@@ -87,7 +89,7 @@ pub fn score(capture: &Capture, tracked: &[(FrameRecordJson, ArchPoses)]) -> Opt
         per_frame.push((rec.frame, frame_err));
         if let Some(a) = &rec.area_error {
             for (k, arch) in Arch::BOTH.iter().enumerate() {
-                if let Some(x) = a.get(arch.name()).and_then(|x| x.as_f64()) {
+                if let Some(x) = *a.get(*arch) {
                     area[k].push(100.0 * x);
                 }
             }

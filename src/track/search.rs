@@ -11,7 +11,7 @@ use nalgebra::Vector3;
 use rand::{RngExt, SeedableRng};
 
 use super::penalties::Penalties;
-use crate::capture::{Arch, ArchPoses};
+use crate::arch::{Arch, ArchPoses};
 use crate::energy::{Energy, EnergyEngine, Weights};
 use crate::error::Result;
 use crate::geometry::Pose;

@@ -14,10 +14,11 @@ use super::penalties::Penalties;
 use super::prior::JawPrior;
 use super::search::{RADIUS_MM, SearchSettings, search};
 use super::state::{TrackState, as_written};
-pub use crate::capture::json::Status;
-use crate::capture::{Arch, ArchPoses, Capture, FrameMasks, MaskMode};
+use crate::arch::{Arch, ArchPoses};
+use crate::capture::{Capture, FrameMasks, MaskMode};
 use crate::energy::{Energy, EnergyEngine};
 use crate::error::Result;
+pub use crate::formats::Status;
 use crate::geometry::Pose;
 use crate::settings::Rules;
 

@@ -12,10 +12,11 @@ use super::overlay;
 use super::score::{ScoreReport, score};
 use super::sequence::{FrameResult, MaskSource, Status, TrackSettings, track_frames};
 use super::state::TrackState;
-use crate::capture::json::FrameRecordJson;
-use crate::capture::{ArchPoses, Capture};
+use crate::arch::ArchPoses;
+use crate::capture::Capture;
 use crate::energy::{Backend, EnergyEngine, Region, Scene, open_engine};
 use crate::error::{Error, Result};
+use crate::formats::FrameRecordJson;
 
 /// What a run is asked to do.
 #[derive(Debug, Clone)]

@@ -7,9 +7,9 @@
 use std::collections::VecDeque;
 use std::path::Path;
 
-use crate::capture::ArchPoses;
-use crate::capture::json::{FrameRecordJson, PoseJson, Status};
+use crate::arch::{Arch, ArchPoses};
 use crate::error::{Error, Result};
+use crate::formats::{FrameRecordJson, PoseJson, Status};
 use crate::geometry::Pose;
 
 /// The last poses (and the ones before, for the velocity) and recent area errors of good
@@ -103,20 +103,8 @@ fn worst_area_error(path: &Path, r: &FrameRecordJson) -> Result<f64> {
             "missing in an `ok` frame: the run cannot be continued exactly (--force starts over)",
         )
     })?;
-    let of = |arch: &str| match errors.get(arch) {
-        Some(serde_json::Value::Null) => Ok(f64::NAN),
-        v => v
-            .and_then(|v| v.as_f64())
-            .filter(|e| e.is_finite())
-            .ok_or_else(|| {
-                Error::invalid(
-                    path,
-                    format!("{field}.{arch}"),
-                    "must be a finite number or null",
-                )
-            }),
-    };
-    Ok(of("upper")?.max(of("lower")?))
+    let of = |arch| errors.get(arch).unwrap_or(f64::NAN);
+    Ok(of(Arch::Upper).max(of(Arch::Lower)))
 }
 
 /// `poses` as a reader of their written record gets them back (the record's rotation matrix

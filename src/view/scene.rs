@@ -9,11 +9,13 @@ use nalgebra::Vector3;
 use serde::{Deserialize, Serialize};
 
 use crate::anatomy::motion::{Anatomical, MotionFrame};
-use crate::capture::json::{Status, TracksJson};
-use crate::capture::{ArchPoses, Capture, Mesh};
+use crate::arch::ArchPoses;
+use crate::capture::Capture;
 use crate::error::{Error, Result};
 use crate::export::gltf::{self, write_gltf};
+use crate::formats::{Status, TracksJson};
 use crate::geometry::{Pose, jaw_pose};
+use crate::mesh::Mesh;
 use crate::rig::ThreeParameterRig;
 use crate::rig::animate::{Key, animate_animator};
 use crate::rig::three::{nearest_animator, solve_animator};
@@ -42,7 +44,7 @@ pub struct TrackedFrame {
 impl Tracked {
     /// The capture's tracks.json, every frame with poses (no-data frames hold the last pose).
     pub fn read(capture: Capture, tracks: &Path) -> Result<Tracked> {
-        let json: TracksJson = crate::capture::json::read_json(tracks, "tracks file")?;
+        let json: TracksJson = crate::io::read_json(tracks, "tracks file")?;
         let mut frames = Vec::with_capacity(json.frames.len());
         for f in &json.frames {
             frames.push(TrackedFrame {

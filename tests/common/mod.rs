@@ -132,7 +132,7 @@ pub fn edit_json(path: &Path, f: impl FnOnce(&mut serde_json::Value)) {
 /// over-mouth and area error for every candidate, while body pixels off the mask are skipped (the energy
 /// region counts fewer of them in most camera views). Returns how many were compared.
 pub fn energy_region_matches_footprint(capture: &jawtrack::capture::Capture, offset: f64) -> usize {
-    use jawtrack::capture::Arch;
+    use jawtrack::arch::Arch;
     use jawtrack::energy::{CpuEnergy, EnergyEngine, MASK_NONE, Region, Scene};
     use rand::{RngExt, SeedableRng};
 

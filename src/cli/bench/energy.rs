@@ -5,7 +5,8 @@ use std::path::{Path, PathBuf};
 use std::time::{Duration, Instant};
 
 use anyhow::Context;
-use jawtrack::capture::{Arch, ArchPoses, Capture, OpenOptions};
+use jawtrack::arch::{Arch, ArchPoses};
+use jawtrack::capture::{Capture, OpenOptions};
 use jawtrack::energy::gpu::GpuEnergy;
 use jawtrack::energy::{CpuEnergy, EnergyEngine, Region, Scene};
 use jawtrack::synth::{Preset, SynthOptions, generate};

@@ -5,7 +5,8 @@ use std::time::Instant;
 
 use anyhow::Context;
 use jawtrack::anatomy::MeshMetric;
-use jawtrack::rig::{JawRig, RigSettings, read_jaw_poses};
+use jawtrack::formats::read_jaw_poses;
+use jawtrack::rig::{JawRig, RigSettings};
 use jawtrack::synth::{SynthOptions, generate};
 use rand::SeedableRng;
 use serde::Serialize;

@@ -3,7 +3,8 @@
 use std::path::PathBuf;
 
 use anyhow::Context;
-use jawtrack::capture::{Arch, ArchPoses, Capture};
+use jawtrack::arch::{Arch, ArchPoses};
+use jawtrack::capture::Capture;
 use jawtrack::energy::{EnergyEngine, Region, Scene, Weights};
 use jawtrack::synth::{SynthOptions, generate};
 use jawtrack::track::SessionOptions;

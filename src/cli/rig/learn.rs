@@ -3,8 +3,9 @@
 use std::path::PathBuf;
 
 use anyhow::Context;
+use jawtrack::formats::read_jaw_poses;
 use jawtrack::rig::model::{NETWORK_COMPONENTS, RigModel};
-use jawtrack::rig::{JawRig, RigSettings, read_jaw_poses};
+use jawtrack::rig::{JawRig, RigSettings};
 use serde::Serialize;
 
 use crate::cli::args::load_mesh;

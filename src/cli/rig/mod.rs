@@ -8,7 +8,7 @@ mod pose;
 use std::path::Path;
 use std::time::Instant;
 
-use jawtrack::rig::{JawPoses, read_jaw_poses};
+use jawtrack::formats::{JawPoses, read_jaw_poses};
 
 use learn::{CompareArgs, EvalArgs, LearnArgs};
 use motion::{AnimateArgs, SampleArgs};

@@ -73,7 +73,7 @@ pub fn animate(a: AnimateArgs) -> anyhow::Result<()> {
     use jawtrack::rig::animate::{Key, animate, animate_animator};
     let rig = JawRig::load(&a.rig)?;
     let keys: Vec<Key> = match &a.keys_file {
-        Some(p) => jawtrack::capture::json::read_json(p, "keys file")?,
+        Some(p) => jawtrack::io::read_json(p, "keys file")?,
         None => a.keys.clone(),
     };
     let play = if a.animator {
@@ -90,7 +90,7 @@ pub fn animate(a: AnimateArgs) -> anyhow::Result<()> {
     })?;
     let numbers: Vec<u32> = frames.iter().map(|f| f.frame).collect();
     let poses: Vec<Pose> = frames.iter().map(|f| f.pose).collect();
-    jawtrack::rig::write_jaw_poses(&a.out, &numbers, &poses)?;
+    jawtrack::formats::write_jaw_poses(&a.out, &numbers, &poses)?;
     if let (Some(dir), Some(mesh)) = (&a.obj_dir, &a.mesh) {
         let (m, _) = load_mesh(mesh)?;
         for f in &frames {
@@ -103,7 +103,7 @@ pub fn animate(a: AnimateArgs) -> anyhow::Result<()> {
                 ));
                 *p = [q.x as f32, q.y as f32, q.z as f32];
             }
-            jawtrack::capture::mesh::write_obj(&posed, &dir.join(format!("{:06}.obj", f.frame)))?;
+            jawtrack::mesh::write_obj(&posed, &dir.join(format!("{:06}.obj", f.frame)))?;
         }
     }
     if let (Some(out), Some(mesh)) = (&a.gltf, &a.mesh) {
@@ -123,7 +123,7 @@ pub fn animate(a: AnimateArgs) -> anyhow::Result<()> {
             &keys,
             "rig animation",
         );
-        jawtrack::capture::write_atomic(out, &bytes)?;
+        jawtrack::io::write_atomic(out, &bytes)?;
         println!("glTF: {} keys -> {}", keys.len(), out.display());
     }
     let clamped = frames.iter().filter(|f| f.clamped).count();
@@ -157,9 +157,9 @@ pub fn sample(a: SampleArgs) -> anyhow::Result<()> {
         .collect();
     let poses: Vec<Pose> = params.iter().map(|d| rig.pose(d)).collect();
     let frames: Vec<u32> = (0..a.count as u32).collect();
-    jawtrack::rig::write_jaw_poses(&a.out, &frames, &poses)?;
+    jawtrack::formats::write_jaw_poses(&a.out, &frames, &poses)?;
     let side = a.out.with_extension("params.json");
-    jawtrack::capture::write_json_atomic(&side, &params)?;
+    jawtrack::io::write_json_atomic(&side, &params)?;
     let animator: Option<Vec<[f64; 3]>> = params
         .iter()
         .map(|d| {
@@ -168,7 +168,7 @@ pub fn sample(a: SampleArgs) -> anyhow::Result<()> {
         })
         .collect();
     if let Some(units) = &animator {
-        jawtrack::capture::write_json_atomic(&a.out.with_extension("animator.json"), units)?;
+        jawtrack::io::write_json_atomic(&a.out.with_extension("animator.json"), units)?;
     }
     println!(
         "wrote {} random rig poses ({} ranges) to {} and their parameters to {}{}",

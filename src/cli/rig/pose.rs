@@ -106,7 +106,7 @@ struct PoseReport {
     /// The nearest valid parameters (equal to `params` when they are valid).
     valid_params: [f64; 3],
     /// upper_from_lower for `params` (or `valid_params` with --clamp).
-    pose: jawtrack::capture::json::PoseJson,
+    pose: jawtrack::formats::PoseJson,
 }
 
 pub fn pose(a: PoseArgs) -> anyhow::Result<()> {
@@ -191,7 +191,7 @@ pub fn encode(a: EncodeArgs) -> anyhow::Result<()> {
         .collect();
     let valid = frames.iter().filter(|f| f.valid).count();
     let mean = frames.iter().map(|f| f.probe_error_mm).sum::<f64>() / frames.len().max(1) as f64;
-    jawtrack::capture::write_json_atomic(
+    jawtrack::io::write_json_atomic(
         &a.out,
         &EncodedFile {
             format: "jawtrack-rig-params/1",
@@ -227,7 +227,7 @@ pub fn reconstruct(a: ReconstructArgs) -> anyhow::Result<()> {
             q
         })
         .collect();
-    jawtrack::rig::write_jaw_poses(&a.out, &poses.frames, &out)?;
+    jawtrack::formats::write_jaw_poses(&a.out, &poses.frames, &out)?;
     println!(
         "wrote {} reconstructed poses to {} ({} clamped into the valid ranges; largest probe error {:.3} mm)",
         out.len(),
@@ -247,7 +247,7 @@ struct IkReport {
     animator: Option<AnimatorReport>,
     valid: bool,
     milliseconds: f64,
-    pose: jawtrack::capture::json::PoseJson,
+    pose: jawtrack::formats::PoseJson,
 }
 
 pub fn ik(a: IkArgs) -> anyhow::Result<()> {

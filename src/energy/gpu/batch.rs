@@ -9,7 +9,7 @@ use super::atlas;
 use super::draw::viewport_size;
 use super::mesh::GpuMesh;
 use super::{GpuEnergy, Tile};
-use crate::capture::{Arch, ArchPoses};
+use crate::arch::{Arch, ArchPoses};
 use crate::energy::BINS;
 use crate::energy::lens::Lens;
 use crate::energy::raster::{CLASS_BODY, CLASS_BOI, NEAR_MM};

@@ -3,7 +3,7 @@
 
 use super::atlas;
 use super::{GpuEnergy, Tile};
-use crate::capture::Arch;
+use crate::arch::Arch;
 use crate::geometry::Camera;
 
 /// The viewport a camera's tiles are drawn with: the image's size rounded up to powers of two

@@ -5,7 +5,7 @@
 use super::atlas;
 use super::batch::{DrawRecord, PAGE_PARAMS_STRIDE, TileRecord};
 use super::{GpuEnergy, Tile};
-use crate::capture::Arch;
+use crate::arch::Arch;
 use crate::energy::BINS;
 use crate::error::GpuError;
 

@@ -2,7 +2,7 @@
 
 use wgpu::util::DeviceExt;
 
-use crate::capture::Mesh;
+use crate::mesh::Mesh;
 
 /// An arch on the GPU: body triangles first, then BOI triangles, in one index buffer.
 pub struct GpuMesh {

@@ -32,7 +32,8 @@ use super::{
     BINS, Counts, Energy, EnergyEngine, MaskTotals, Region, Scene, counts_with_outside,
     frame_totals,
 };
-use crate::capture::{Arch, ArchPoses, FrameMasks, PerArch};
+use crate::arch::{Arch, ArchPoses, PerArch};
+use crate::capture::FrameMasks;
 use crate::error::Result;
 use crate::geometry::Camera;
 

@@ -10,7 +10,7 @@ use super::atlas;
 use super::atlas::PAGE;
 use super::batch::DrawRecord;
 use super::pipelines::{COLOUR_FORMAT, PipelineSpec, Pipelines, raster_module};
-use crate::capture::Arch;
+use crate::arch::Arch;
 use crate::energy::{BINS, MASK_MOUTH, MASK_NONE, MASK_OWN};
 use crate::error::GpuError;
 

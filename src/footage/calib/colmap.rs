@@ -9,9 +9,9 @@ use std::path::{Path, PathBuf};
 use nalgebra::{Quaternion, UnitQuaternion, Vector3};
 
 use super::{ImportOptions, ImportedCamera, extrinsics, lens_from};
-use crate::capture::read::read_text;
 use crate::error::{Error, Result};
 use crate::geometry::Distortion;
+use crate::io::read::read_text;
 
 /// A camera model of cameras.txt: intrinsics and OpenCV distortion from its parameters.
 struct Intrinsics {
@@ -50,7 +50,7 @@ fn parse<T: std::str::FromStr>(token: &str, path: &Path, field: &str) -> Result<
         Error::invalid(
             path,
             field,
-            format!("`{}` is not a number", crate::capture::read::quote(token)),
+            format!("`{}` is not a number", crate::io::read::quote(token)),
         )
     })
 }

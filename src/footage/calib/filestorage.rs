@@ -6,8 +6,8 @@ use std::path::Path;
 
 use yaml_rust2::Yaml;
 
-use crate::capture::read::read_text;
 use crate::error::{Error, Result};
+use crate::io::read::read_text;
 
 /// A value in a FileStorage document.
 #[derive(Debug, Clone, PartialEq)]
@@ -183,7 +183,7 @@ fn from_yaml(y: Yaml, path: &Path, field: &str) -> Result<Node> {
             Error::invalid(
                 path,
                 field,
-                format!("`{}` is not a number", crate::capture::read::quote(&s)),
+                format!("`{}` is not a number", crate::io::read::quote(&s)),
             )
         })?),
         Yaml::String(s) => match number(&s) {

@@ -17,10 +17,11 @@ pub use colmap::{MAX_CAMERAS, read_colmap};
 pub use filestorage::Node;
 pub use opencv::read_opencv;
 
+use crate::capture::camera_from_json;
 use crate::capture::json::CameraJson;
-use crate::capture::{camera_from_json, write_json_atomic};
 use crate::error::{Error, Result};
 use crate::geometry::{Camera, Distortion, Pose};
+use crate::io::write_json_atomic;
 
 /// The length unit of a calibration's translations (the capture format's is the millimetre).
 #[derive(Debug, Clone, Copy, PartialEq, Eq, Default)]
@@ -178,7 +179,7 @@ pub fn check_name(name: &str, source: &Path) -> Result<()> {
             "camera name",
             format!(
                 "`{}` is not a camera name: use up to 64 letters, digits, `-`, `_` and `.` (not first)",
-                crate::capture::read::quote(name)
+                crate::io::read::quote(name)
             ),
         ))
     }

@@ -7,8 +7,8 @@ use nalgebra::{Matrix3, Rotation3, Vector3};
 
 use super::filestorage::{self, Node};
 use super::{ImportOptions, ImportedCamera, extrinsics, lens_from};
-use crate::capture::json::ROTATION_TOLERANCE;
 use crate::error::{Error, Result};
+use crate::formats::ROTATION_TOLERANCE;
 use crate::geometry::{Distortion, Pose, so3_exp};
 
 const INTRINSICS: &[&str] = &[

@@ -1,7 +1,11 @@
 //! The two arches, a value per arch, and both arches' poses.
 
-use super::masks::{LOWER_BIT, UPPER_BIT};
 use crate::geometry::Pose;
+
+/// The bit of a label mask that marks the upper arch's pixels (the masks' bitfield).
+pub const UPPER_BIT: u8 = 1;
+/// The bit of a label mask that marks the lower arch's pixels.
+pub const LOWER_BIT: u8 = 2;
 
 /// The two arches.
 #[derive(Debug, Clone, Copy, PartialEq, Eq, Hash)]

@@ -6,8 +6,8 @@ use std::path::Path;
 use ply_rs_bw::{parser::Parser, ply::Property};
 
 use super::RawMesh;
-use crate::capture::read::quote;
 use crate::error::{Error, Result};
+use crate::io::read::quote;
 
 fn scalar(p: &Property) -> Option<f64> {
     Some(match *p {
@@ -77,7 +77,7 @@ fn check_claimed_counts(
 }
 
 pub(crate) fn read_ply(path: &Path) -> Result<RawMesh> {
-    let (file, len) = crate::capture::read::open_input(path, "mesh")?;
+    let (file, len) = crate::io::read::open_input(path, "mesh")?;
     let mut reader = std::io::BufReader::new(file);
     check_claimed_counts(path, &mut reader, len)?;
     let ply = Parser::<ply_rs_bw::ply::DefaultElement>::new()

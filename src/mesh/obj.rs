@@ -7,13 +7,13 @@ use std::io::Write;
 use std::path::Path;
 
 use super::{Mesh, RawMesh};
-use crate::capture::read::quote;
 use crate::error::{Error, Result};
+use crate::io::read::quote;
 
 const NO_TAG: u32 = u32::MAX;
 
 pub(crate) fn read_obj(path: &Path) -> Result<RawMesh> {
-    let text = crate::capture::read::read_text(path, "mesh")?;
+    let text = crate::io::read::read_text(path, "mesh")?;
     parse_obj(&text, path)
 }
 
@@ -140,7 +140,7 @@ pub fn write_obj(mesh: &Mesh, path: &Path) -> Result<()> {
             );
         }
     }
-    crate::capture::write_atomic(path, &out)
+    crate::io::write_atomic(path, &out)
 }
 
 #[cfg(test)]

@@ -343,7 +343,7 @@ impl Mesh {
 }
 
 fn read_face_list(path: &Path, face_count: usize) -> Result<Vec<bool>> {
-    let faces: Vec<i64> = crate::capture::json::read_json(path, "boundary-of-interest face list")?;
+    let faces: Vec<i64> = crate::io::read_json(path, "boundary-of-interest face list")?;
     if faces.is_empty() {
         return Err(Error::invalid(
             path,

@@ -3,8 +3,8 @@
 use std::path::Path;
 
 use super::RawMesh;
-use crate::capture::read::quote;
 use crate::error::{Error, Result};
+use crate::io::read::quote;
 
 /// A binary STL header gives its triangle count, and the reader allocates for it: a count the
 /// file's size cannot hold is refused first. (An ASCII file starts with `solid` and has no
@@ -42,7 +42,7 @@ fn check_claimed_size(path: &Path, file: &mut std::fs::File, len: u64) -> Result
 }
 
 pub(crate) fn read_stl(path: &Path) -> Result<RawMesh> {
-    let (mut file, len) = crate::capture::read::open_input(path, "mesh")?;
+    let (mut file, len) = crate::io::read::open_input(path, "mesh")?;
     check_claimed_size(path, &mut file, len)?;
     let stl = stl_io::read_stl(&mut file).map_err(|e| {
         Error::invalid(

@@ -1,15 +1,16 @@
-//! Jaw poses in and out: a tracks.json (or gt/poses.json), whose frames give the upper and
-//! lower arch poses, or a jaw-pose file (`jawtrack-jaw/1`) that gives `upper_from_lower`
-//! directly.
+//! Jaw poses (`upper_from_lower`) in and out: the jaw-pose file (`jawtrack-jaw/1`: the
+//! face-sequence format's jaw.json, and what `skin predict` writes), or a tracks.json /
+//! gt/poses.json, whose frames give the upper and lower arch poses.
 
 use std::path::Path;
 
 use serde::{Deserialize, Serialize};
 
-use crate::capture::json::{FrameRecordJson, PoseJson, Status, TRACKS_FORMAT, read_json};
-use crate::capture::write_json_atomic;
+use super::pose::PoseJson;
+use super::tracks::{FrameRecordJson, Status, TRACKS_FORMAT};
 use crate::error::{Error, Result};
 use crate::geometry::{Pose, jaw_pose};
+use crate::io::{read_json, write_json_atomic};
 
 pub const JAW_FORMAT: &str = "jawtrack-jaw/1";
 
@@ -54,6 +55,43 @@ impl JawPoses {
     }
 }
 
+/// Read a `jawtrack-jaw/1` file: the format checked, every pose a rotation and a translation
+/// in range, no frame twice; in the file's order.
+pub fn read_jaw_file(path: &Path) -> Result<Vec<(u32, Pose)>> {
+    let file: JawFileJson = read_json(path, "jaw poses (jawtrack-jaw/1)")?;
+    if file.format != JAW_FORMAT {
+        return Err(Error::invalid(
+            path,
+            "format",
+            format!("is `{}`, expected `{JAW_FORMAT}`", file.format),
+        ));
+    }
+    jaw_records(path, &file.poses)
+}
+
+fn jaw_records(path: &Path, records: &[JawRecordJson]) -> Result<Vec<(u32, Pose)>> {
+    let mut seen = std::collections::BTreeSet::new();
+    records
+        .iter()
+        .enumerate()
+        .map(|(i, r)| {
+            let field = format!("poses[{i}]");
+            if !seen.insert(r.frame) {
+                return Err(Error::invalid(
+                    path,
+                    format!("{field}.frame"),
+                    format!("frame {} is listed twice", r.frame),
+                ));
+            }
+            let pose = PoseJson {
+                rotation: r.rotation,
+                translation: r.translation,
+            };
+            Ok((r.frame, pose.to_pose(path, &field)?))
+        })
+        .collect()
+}
+
 /// Read a tracks.json / gt/poses.json (frames whose status is `ok` or absent) or a
 /// `jawtrack-jaw/1` file.
 pub fn read_jaw_poses(path: &Path) -> Result<JawPoses> {
@@ -73,13 +111,9 @@ pub fn read_jaw_poses(path: &Path) -> Result<JawPoses> {
                     format!("missing: a {JAW_FORMAT} file lists its poses under `poses`"),
                 )
             })?;
-            for (i, p) in poses.iter().enumerate() {
-                let pj = PoseJson {
-                    rotation: p.rotation,
-                    translation: p.translation,
-                };
-                out.frames.push(p.frame);
-                out.poses.push(pj.to_pose(path, &format!("poses[{i}]"))?);
+            for (frame, pose) in jaw_records(path, &poses)? {
+                out.frames.push(frame);
+                out.poses.push(pose);
             }
         }
         None | Some(TRACKS_FORMAT) => {
