@@ -6,6 +6,7 @@ pub mod additive;
 pub mod animate;
 pub mod coupled;
 pub mod eval;
+mod file;
 pub mod ik;
 mod lbfgs;
 pub mod model;

@@ -64,12 +64,6 @@ impl JawRig {
         let m = self.motion_frame()?;
         solve_animator(self, &m, target, self.encode(m.rest()))
     }
-
-    /// [`JawRig::params_for`] from `start` (an animation's previous frame).
-    pub fn params_near(&self, target: &AnimatorParams, start: [f64; 3]) -> Option<[f64; 3]> {
-        let m = self.motion_frame()?;
-        solve_animator(self, &m, target, start)
-    }
 }
 
 impl ThreeParameterRig for JawRig {
