@@ -11,8 +11,8 @@ use jawtrack::capture::Capture;
 fn the_template_opens() {
     let (_t, dir) = fresh_capture();
     let c = Capture::open(&dir).unwrap();
-    assert_eq!(c.cameras.len(), 3);
-    assert_eq!(c.frame_count, 6);
+    assert_eq!(c.cameras().len(), 3);
+    assert_eq!(c.frame_count(), 6);
 }
 
 #[test]
@@ -258,8 +258,8 @@ fn boundary_of_interest_as_face_lists() {
     );
     std::fs::write(dir.join("meshes/lower.boi.json"), "[5, 6]").unwrap();
     let c = Capture::open(&dir).unwrap();
-    assert_eq!(c.upper.boi_face_count(), 3);
-    assert_eq!(c.lower.boi_face_count(), 2);
+    assert_eq!(c.upper().boi_face_count(), 3);
+    assert_eq!(c.lower().boi_face_count(), 2);
 }
 
 #[test]
@@ -588,8 +588,8 @@ fn frame_offsets_shift_a_cameras_files() {
     });
     let shifted = Capture::open(&dir).unwrap();
     assert_eq!(
-        shifted.cameras[1].frames_present,
-        original.cameras[1].frames_present
+        shifted.cameras()[1].frames_present,
+        original.cameras()[1].frames_present
     );
     for (f, masks) in shifted.frames().zip(&before) {
         assert_eq!(
@@ -615,9 +615,9 @@ fn an_unknown_field_in_capture_json_is_named() {
         v["frames"]["step"] = 2.into()
     });
     let c = Capture::open(&dir).unwrap();
-    assert_eq!(c.notes.len(), 1);
+    assert_eq!(c.notes().len(), 1);
     assert_mentions(
-        &c.notes[0],
+        &c.notes()[0],
         &["capture.json", "`frames.step`", "not a field"],
     );
     let out = std::process::Command::new(env!("CARGO_BIN_EXE_jawtrack"))
@@ -637,14 +637,14 @@ fn an_unknown_field_in_capture_json_is_named() {
 #[test]
 fn the_mouth_label_is_checked() {
     let (_t, dir) = fresh_capture();
-    let labels = Capture::open(&dir).unwrap().mask_mode;
+    let labels = Capture::open(&dir).unwrap().mask_mode();
     let jawtrack::capture::MaskMode::PerArch { upper, .. } = labels else {
         panic!("a per-arch capture");
     };
     edit_json(&dir.join("capture.json"), |v| {
         v["masks"]["mouth"] = 3.into()
     });
-    assert_eq!(Capture::open(&dir).unwrap().mouth, Some(3));
+    assert_eq!(Capture::open(&dir).unwrap().mouth(), Some(3));
     edit_json(&dir.join("capture.json"), |v| {
         v["masks"]["mouth"] = upper.into()
     });

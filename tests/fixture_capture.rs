@@ -20,22 +20,27 @@ fn fixture() -> Capture {
 fn reads_what_another_program_wrote() {
     let c = fixture();
     assert_eq!(c.camera_names(), ["left", "right"]);
-    assert_eq!(c.mask_mode, MaskMode::PerArch { upper: 1, lower: 2 });
+    assert_eq!(c.mask_mode(), MaskMode::PerArch { upper: 1, lower: 2 });
     // Its own field (`producer`) is noted, not refused: the spec lets writers add fields.
     assert!(
-        c.notes.len() == 1 && c.notes[0].contains("`producer`"),
+        c.notes().len() == 1 && c.notes()[0].contains("`producer`"),
         "{:?}",
-        c.notes
+        c.notes()
     );
-    assert_eq!((c.upper.positions.len(), c.upper.triangles.len()), (8, 12));
     assert_eq!(
-        c.upper.boi,
+        (c.upper().positions.len(), c.upper().triangles.len()),
+        (8, 12)
+    );
+    assert_eq!(
+        c.upper().boi,
         (0..12).map(|i| i == 2 || i == 3).collect::<Vec<_>>()
     );
-    assert!(c.cameras[0].calibrated.has_distortion() && !c.cameras[1].calibrated.has_distortion());
-    assert_eq!(c.cameras[0].mask_size, Some((160, 120)));
+    assert!(
+        c.cameras()[0].calibrated.has_distortion() && !c.cameras()[1].calibrated.has_distortion()
+    );
+    assert_eq!(c.cameras()[0].mask_size, Some((160, 120)));
     // Half-size masks: the mask camera's intrinsics are scaled.
-    let mc = c.cameras[1].mask_camera().unwrap();
+    let mc = c.cameras()[1].mask_camera().unwrap();
     assert_eq!((mc.fx, mc.cx, mc.cy), (150.0, 79.5, 59.5));
     // The missing mask.
     let m1 = c.load_masks(1).unwrap();
@@ -47,18 +52,18 @@ fn masks_are_used_as_seen_and_models_are_drawn_through_the_lens() {
     let c = fixture();
     let m = c.load_masks(0).unwrap();
     for k in 0..2 {
-        let raw = decode_mask(&c.mask_path(k, 0), c.mask_mode, c.mouth).unwrap();
+        let raw = decode_mask(&c.mask_path(k, 0), c.mask_mode(), c.mouth()).unwrap();
         assert!(
             m.masks[k].as_ref() == Some(&raw),
             "camera {k}: mask as written"
         );
     }
-    let cam = c.cameras[0].mask_camera().unwrap();
+    let cam = c.cameras()[0].mask_camera().unwrap();
     assert!(cam.has_distortion(), "the mask camera keeps the lens");
     // The upper box placed near the left camera's top-left corner, where the lens moves its
     // corners by up to 9 pixels: its outline lies where the lens model projects its vertices.
     let pose = Pose::from_translation(Vector3::new(-70.0, 56.0, 0.0));
-    let labels = render_labels(&cam, &[(&c.upper, &pose, 1, 1)]);
+    let labels = render_labels(&cam, &[(&c.upper(), &pose, 1, 1)]);
     let (w, h) = (cam.width as usize, cam.height as usize);
     let lit: Vec<(f64, f64)> = (0..w * h)
         .filter(|&i| labels[i] == 1)
@@ -77,7 +82,7 @@ fn masks_are_used_as_seen_and_models_are_drawn_through_the_lens() {
     };
     let drawn = bounds(&mut lit.iter().copied());
     let vertices = |cam: &Camera| {
-        bounds(&mut c.upper.positions.iter().map(|p| {
+        bounds(&mut c.upper().positions.iter().map(|p| {
             let x = pose.transform_point(&Vector3::new(p[0] as f64, p[1] as f64, p[2] as f64));
             let px = cam.project(&x).unwrap();
             (px.x, px.y)
@@ -103,7 +108,7 @@ fn masks_are_used_as_seen_and_models_are_drawn_through_the_lens() {
 #[test]
 fn bootstrap_through_distortion_recovers_the_poses() {
     let c = fixture();
-    assert!(matches!(c.init.as_ref().unwrap().upper, ArchInit::Points(ref p) if p.len() == 4));
+    assert!(matches!(c.init().unwrap().upper, ArchInit::Points(ref p) if p.len() == 4));
     let poses = c.initial_poses().unwrap();
     // The script placed the boxes at (0, 6, 0) and (0, −6, 2) with no rotation.
     for (arch, t) in [

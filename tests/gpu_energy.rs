@@ -311,7 +311,9 @@ fn gpu_matches_cpu_on_synthetic_frames_combined() {
 #[test]
 fn gpu_matches_cpu_through_a_lens() {
     let c = common::lens_template(Preset::Realistic);
-    let cam = Capture::open(c).unwrap().cameras[0].mask_camera().unwrap();
+    let cam = Capture::open(c).unwrap().cameras()[0]
+        .mask_camera()
+        .unwrap();
     assert!(cam.has_distortion());
     compare_on_synthetic(c, "through a lens", 1.0);
 }
@@ -321,7 +323,7 @@ fn gpu_matches_cpu_through_a_lens() {
 fn gpu_matches_cpu_through_rational_and_fisheye_lenses() {
     for (which, what) in [(0, "through a rational lens"), (1, "through a fisheye")] {
         let c = common::model_lens_template(which);
-        let cam = Capture::open(c).unwrap().cameras[0].calibrated.clone();
+        let cam = Capture::open(c).unwrap().cameras()[0].calibrated.clone();
         assert_eq!(cam.distortion.is_fisheye(), which == 1);
         // These models take a dozen more multiply-adds a vertex, which the GPU's compiler may
         // fuse (SPIR-V allows contraction) where the CPU rounds each: a vertex near the 1/256

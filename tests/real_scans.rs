@@ -94,14 +94,14 @@ fn a_synthetic_capture_on_the_real_scans_loads_back() {
         },
     )
     .unwrap();
-    assert_eq!(full.upper.triangles.len(), report.triangles[0]);
-    assert!(full.upper.boi_face_count() > 1000);
+    assert_eq!(full.upper().triangles.len(), report.triangles[0]);
+    assert!(full.upper().boi_face_count() > 1000);
     // By default the arches are simplified within 0.02 mm: far fewer triangles, and the
     // same picture to within a few edge pixels of the masks' resolution.
     let c = Capture::open(&out).unwrap();
     for (name, a, b) in [
-        ("upper", &full.upper, &c.upper),
-        ("lower", &full.lower, &c.lower),
+        ("upper", &full.upper(), &c.upper()),
+        ("lower", &full.lower(), &c.lower()),
     ] {
         assert!(
             b.triangles.len() < a.triangles.len() / 2,
@@ -121,8 +121,8 @@ fn a_synthetic_capture_on_the_real_scans_loads_back() {
             render_labels(
                 cam,
                 &[
-                    (&capture.upper, &poses.upper, 1, 2),
-                    (&capture.lower, &poses.lower, 3, 4),
+                    (&capture.upper(), &poses.upper, 1, 2),
+                    (&capture.lower(), &poses.lower, 3, 4),
                 ],
             )
         };

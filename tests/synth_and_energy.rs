@@ -18,13 +18,13 @@ fn synthetic_captures_round_trip_through_the_reader() {
     let c = Capture::open(dir).unwrap();
     assert_eq!(c.camera_names(), ["cam0", "cam1", "cam2"]);
     assert_eq!(c.frames(), 0..6);
-    let gt = c.gt.as_ref().unwrap();
+    let gt = c.gt().unwrap();
     assert_eq!(gt.len(), 6);
     let init = c.initial_poses().unwrap();
     let (r, t) = init.upper.distance_to(&gt[0].poses.upper);
     assert!(r < 1e-9 && t < 1e-9);
-    assert!(c.mandible.as_ref().unwrap().triangles.len() > c.lower.triangles.len());
-    for cam in &c.cameras {
+    assert!(c.mandible().unwrap().triangles.len() > c.lower().triangles.len());
+    for cam in c.cameras() {
         assert_eq!(cam.mask_size, Some((960, 540)), "half-resolution masks");
     }
     // Every frame decodes, with teeth of both arches in the masks.
@@ -120,8 +120,8 @@ fn masks_label_the_mouth_interior_unless_told_not_to() {
             Capture::open(&with).unwrap(),
             Capture::open(&without).unwrap(),
         );
-        assert_eq!(a.mouth, Some(jawtrack::synth::MOUTH_LABEL));
-        assert_eq!(b.mouth, None);
+        assert_eq!(a.mouth(), Some(jawtrack::synth::MOUTH_LABEL));
+        assert_eq!(b.mouth(), None);
         let mut mouth_pixels = 0;
         for frame in [0, 4, 7] {
             let (ma, mb) = (a.load_masks(frame).unwrap(), b.load_masks(frame).unwrap());
@@ -173,11 +173,11 @@ fn another_rig_and_a_lens_are_written_as_given() {
     let c = Capture::open(&t.path().join("own")).unwrap();
     assert_eq!(c.camera_names(), ["left", "right"]);
     assert_eq!(
-        c.cameras[1].calibrated.distortion,
+        c.cameras()[1].calibrated.distortion,
         jawtrack::geometry::Distortion::brown([-0.1, 0.0, 0.0, 0.0, 0.0])
     );
-    assert!(!c.cameras[0].calibrated.has_distortion());
-    assert_eq!(c.cameras[0].mask_size, Some((960, 540)));
+    assert!(!c.cameras()[0].calibrated.has_distortion());
+    assert_eq!(c.cameras()[0].mask_size, Some((960, 540)));
     // --distortion replaces every camera's lens.
     generate(
         &t.path().join("lens"),
@@ -186,7 +186,7 @@ fn another_rig_and_a_lens_are_written_as_given() {
     )
     .unwrap();
     let c = Capture::open(&t.path().join("lens")).unwrap();
-    for cam in &c.cameras {
+    for cam in c.cameras() {
         assert_eq!(cam.calibrated.distortion, jawtrack::synth::BARREL_LENS);
     }
     // A lens that folds back inside the image, and a folder without cameras, are refused.
@@ -295,7 +295,7 @@ fn bootstrap_points_recover_the_first_poses() {
                         p[2] as f64,
                     ));
                     let mut pixels = serde_json::Map::new();
-                    for cam in &c.cameras {
+                    for cam in c.cameras() {
                         let px = cam.calibrated.project(&world).unwrap()
                             + Vector2::new(0.25, -0.25) * (k as f64 - 1.5);
                         pixels.insert(cam.calibrated.name.clone(), serde_json::json!([px.x, px.y]));
@@ -346,8 +346,8 @@ fn masks_read_at_a_fraction_of_their_resolution_line_up_with_the_cameras() {
         full.load_masks(frame).unwrap(),
         half.load_masks(frame).unwrap(),
     );
-    for (i, cam) in half.cameras.iter().enumerate() {
-        let (w, h) = full.cameras[i].mask_size.unwrap();
+    for (i, cam) in half.cameras().iter().enumerate() {
+        let (w, h) = full.cameras()[i].mask_size.unwrap();
         assert_eq!(cam.mask_size, Some((w / 2, h / 2)));
         let m = mh.masks[i].as_ref().unwrap();
         assert_eq!((m.width, m.height), (w / 2, h / 2));
@@ -366,7 +366,7 @@ fn masks_read_at_a_fraction_of_their_resolution_line_up_with_the_cameras() {
     // cameras at the truth differ from the reduced masks only along edges, and less than when
     // drawn half a pixel to any side (the scaling's pixel-centre convention).
     let truth = half.gt_poses(frame).unwrap();
-    for (i, cam) in half.cameras.iter().enumerate() {
+    for (i, cam) in half.cameras().iter().enumerate() {
         let m = mh.masks[i].as_ref().unwrap();
         let cam = cam.mask_camera().unwrap();
         let differ = |dx: f64, dy: f64| {
@@ -378,8 +378,8 @@ fn masks_read_at_a_fraction_of_their_resolution_line_up_with_the_cameras() {
             let drawn = jawtrack::energy::raster::render_labels(
                 &cam,
                 &[
-                    (&half.upper, &truth.upper, 1, 1),
-                    (&half.lower, &truth.lower, 2, 2),
+                    (&half.upper(), &truth.upper, 1, 1),
+                    (&half.lower(), &truth.lower, 2, 2),
                 ],
             );
             drawn.iter().zip(&m.data).filter(|(a, b)| a != b).count()

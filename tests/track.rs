@@ -182,7 +182,7 @@ fn overlays_tell_the_mouth_from_the_teeth() {
         .map(|f| (f, c.load_masks(f).unwrap().masks[0].clone().unwrap()))
         .max_by_key(|(_, m)| m.count(MOUTH_BIT))
         .unwrap();
-    let name = &c.cameras[0].calibrated.name;
+    let name = &c.cameras()[0].calibrated.name;
     let picture = image::open(overlays.join(name).join(format!("{frame:06}.png")))
         .unwrap()
         .to_rgb8();

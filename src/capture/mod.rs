@@ -77,24 +77,89 @@ pub struct Init {
 /// A validated capture. Masks are not held: read them frame by frame with [`Capture::load_masks`].
 #[derive(Debug)]
 pub struct Capture {
-    pub dir: PathBuf,
-    pub cameras: Vec<CaptureCamera>,
-    pub first_frame: u32,
-    pub frame_count: u32,
-    pub upper: Mesh,
-    pub lower: Mesh,
-    pub mandible: Option<Mesh>,
-    pub mask_dir: PathBuf,
-    pub mask_mode: MaskMode,
+    dir: PathBuf,
+    cameras: Vec<CaptureCamera>,
+    first_frame: u32,
+    frame_count: u32,
+    upper: Mesh,
+    lower: Mesh,
+    mandible: Option<Mesh>,
+    mask_dir: PathBuf,
+    mask_mode: MaskMode,
     /// The mask value of the visible mouth interior (`masks.mouth`), when the masks label it.
     /// The paper's energy reads it as background.
-    pub mouth: Option<u8>,
+    mouth: Option<u8>,
     /// What was read but not used (fields the format does not have), for the user to see.
-    pub notes: Vec<String>,
+    notes: Vec<String>,
     /// Masks are read at 1/`mask_reduce` of their resolution ([`OpenOptions::mask_reduce`]).
-    pub mask_reduce: u32,
-    pub init: Option<Init>,
-    pub gt: Option<Vec<FramePoses>>,
+    mask_reduce: u32,
+    init: Option<Init>,
+    gt: Option<Vec<FramePoses>>,
+}
+
+impl Capture {
+    /// The capture folder.
+    pub fn dir(&self) -> &Path {
+        &self.dir
+    }
+    /// The cameras, in capture.json's order.
+    pub fn cameras(&self) -> &[CaptureCamera] {
+        &self.cameras
+    }
+    pub fn first_frame(&self) -> u32 {
+        self.first_frame
+    }
+    pub fn frame_count(&self) -> u32 {
+        self.frame_count
+    }
+    pub fn upper(&self) -> &Mesh {
+        &self.upper
+    }
+    pub fn lower(&self) -> &Mesh {
+        &self.lower
+    }
+    /// The mandible (teeth, ramus, condyles) in the lower arch's frame, when the capture has one.
+    pub fn mandible(&self) -> Option<&Mesh> {
+        self.mandible.as_ref()
+    }
+    pub fn mask_dir(&self) -> &Path {
+        &self.mask_dir
+    }
+    pub fn mask_mode(&self) -> MaskMode {
+        self.mask_mode
+    }
+    /// The mask value of the visible mouth interior (`masks.mouth`), when the masks label it.
+    pub fn mouth(&self) -> Option<u8> {
+        self.mouth
+    }
+    /// What was read but not used (fields the format does not have), for the user to see.
+    pub fn notes(&self) -> &[String] {
+        &self.notes
+    }
+    /// Masks are read at 1/`mask_reduce` of their resolution.
+    pub fn mask_reduce(&self) -> u32 {
+        self.mask_reduce
+    }
+    pub fn init(&self) -> Option<&Init> {
+        self.init.as_ref()
+    }
+    /// The ground truth (gt/poses.json), when the capture has it.
+    pub fn gt(&self) -> Option<&[FramePoses]> {
+        self.gt.as_deref()
+    }
+
+    /// Tell camera `k` that its masks, made as tracking goes (segmenting the pictures), will
+    /// be `size` as the energy sees them: tracking is set up before the first mask exists.
+    pub fn expect_masks(&mut self, k: usize, size: (u32, u32)) {
+        self.cameras[k].mask_size = Some(size);
+    }
+
+    /// The same capture with its mouth label read as background, as the paper's energy
+    /// reads every mask (a comparison with and without the label).
+    pub fn without_mouth_label(mut self) -> Capture {
+        self.mouth = None;
+        self
+    }
 }
 
 /// Masks of one frame, one entry per camera (`None`: no mask file for that camera).

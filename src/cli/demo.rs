@@ -65,12 +65,12 @@ pub fn run(a: Args) -> anyhow::Result<()> {
     let (capture, _) = super::run::open_and_check(&out, Default::default(), true)?;
     println!(
         "{} cameras, frames {}..{}, meshes {} + {} triangles, {}",
-        capture.cameras.len(),
-        capture.first_frame,
-        capture.first_frame + capture.frame_count,
-        capture.upper.triangles.len(),
-        capture.lower.triangles.len(),
-        match capture.mouth {
+        capture.cameras().len(),
+        capture.first_frame(),
+        capture.first_frame() + capture.frame_count(),
+        capture.upper().triangles.len(),
+        capture.lower().triangles.len(),
+        match capture.mouth() {
             Some(_) => "masks label the visible mouth interior",
             None => "teeth masks alone",
         }
@@ -100,7 +100,7 @@ pub fn run(a: Args) -> anyhow::Result<()> {
     let poses = jawtrack::formats::read_jaw_poses(&tracks)?;
     // The error is measured on the mandible when the capture has one.
     let metric =
-        jawtrack::anatomy::MeshMetric::new(reopened.mandible.as_ref().unwrap_or(&reopened.lower));
+        jawtrack::anatomy::MeshMetric::new(reopened.mandible().unwrap_or(reopened.lower()));
     let rig = super::run::with_spinner("learning the rig", || {
         jawtrack::rig::JawRig::learn(&poses.poses, &metric, &Default::default(), &|_| {})
     })?;
@@ -115,7 +115,7 @@ pub fn run(a: Args) -> anyhow::Result<()> {
         rec.rig.stats.max,
         rec.pca[2].stats.mean,
     );
-    if let Some(mandible) = &reopened.mandible {
+    if let Some(mandible) = &reopened.mandible() {
         let frame = jawtrack::envelope::JawFrame::from_mesh(mandible, None, None)?;
         let envelope = jawtrack::envelope::EnvelopeRig::learn(&poses.poses, &frame, &metric)?;
         let errors: Vec<f64> = poses

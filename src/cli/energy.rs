@@ -39,8 +39,8 @@ pub fn run(a: Args) -> anyhow::Result<()> {
         return Err(anyhow!(
             "--frame {}: the capture has frames {}..{}",
             a.frame,
-            capture.first_frame,
-            capture.first_frame + capture.frame_count
+            capture.first_frame(),
+            capture.first_frame() + capture.frame_count()
         ));
     }
     let default = default_poses(&capture, a.frame);
@@ -53,7 +53,7 @@ pub fn run(a: Args) -> anyhow::Result<()> {
                     arch.name(),
                     arch.name(),
                     a.frame,
-                    if a.frame == capture.first_frame { " and no init.json" } else { "" }
+                    if a.frame == capture.first_frame() { " and no init.json" } else { "" }
                 )
             }),
         }
@@ -88,7 +88,7 @@ pub fn run(a: Args) -> anyhow::Result<()> {
 /// Ground truth for the frame, else init.json's poses for the first frame.
 pub fn default_poses(capture: &Capture, frame: u32) -> Option<ArchPoses> {
     capture.gt_poses(frame).or_else(|| {
-        (frame == capture.first_frame)
+        (frame == capture.first_frame())
             .then(|| capture.initial_poses().ok())
             .flatten()
     })

@@ -54,13 +54,13 @@ pub fn run(a: Args) -> anyhow::Result<()> {
             continue;
         }
         let jaw = f.checked_jaw(&a.tracks)?;
-        let last = capture.first_frame as u64 + capture.frame_count as u64;
-        if (f.frame as u64) < capture.first_frame as u64 || f.frame as u64 >= last {
+        let last = capture.first_frame() as u64 + capture.frame_count() as u64;
+        if (f.frame as u64) < capture.first_frame() as u64 || f.frame as u64 >= last {
             bail!(
                 "{}: frame {}: the capture has frames {} to {}",
                 a.tracks.display(),
                 f.frame,
-                capture.first_frame,
+                capture.first_frame(),
                 last.saturating_sub(1)
             );
         }
@@ -72,7 +72,7 @@ pub fn run(a: Args) -> anyhow::Result<()> {
     }
     // The jaw frame from the mandible's condyles when the capture has one; else the lower
     // arch's last molars stand in for them (the axes, all that is used, come out the same).
-    let landmarks_on = capture.mandible.as_ref().unwrap_or(&capture.lower);
+    let landmarks_on = capture.mandible().unwrap_or(capture.lower());
     let landmarks = JawFrame::from_mesh(landmarks_on, None, None)
         .map_err(|e| anyhow::anyhow!("the jaw frame's landmarks: {e}"))?;
     let rest_index = match a.rest_frame {
@@ -117,7 +117,7 @@ pub fn run(a: Args) -> anyhow::Result<()> {
                 jaw: *jaw,
             })
             .collect();
-        let mandible = capture.mandible.as_ref().map(|m| Part {
+        let mandible = capture.mandible().map(|m| Part {
             name: "mandible",
             mesh: m,
             colour: jawtrack::export::gltf::MANDIBLE_COLOUR,
@@ -125,12 +125,12 @@ pub fn run(a: Args) -> anyhow::Result<()> {
         let bytes = write_gltf(
             Some(&Part {
                 name: "upper",
-                mesh: &capture.upper,
+                mesh: &capture.upper(),
                 colour: jawtrack::export::gltf::UPPER_COLOUR,
             }),
             &Part {
                 name: "lower",
-                mesh: &capture.lower,
+                mesh: &capture.lower(),
                 colour: jawtrack::export::gltf::LOWER_COLOUR,
             },
             mandible.as_ref(),

@@ -10,7 +10,7 @@ use jawtrack::track::{Status, Summary};
 
 /// What opening the capture noticed but did not refuse, on stderr.
 pub fn notes(c: &Capture) {
-    for note in &c.notes {
+    for note in c.notes() {
         eprintln!("warning: {note}");
     }
 }
@@ -18,15 +18,15 @@ pub fn notes(c: &Capture) {
 /// A capture's summary; `pixels` (each camera's mean upper, lower and mouth pixels per mask)
 /// when its masks were decoded.
 pub fn capture(c: &Capture, pixels: Option<&[[f64; 3]]>) {
-    println!("capture {}: valid", c.dir.display());
-    let last = c.first_frame + c.frame_count - 1;
+    println!("capture {}: valid", c.dir().display());
+    let last = c.first_frame() + c.frame_count() - 1;
     println!(
         "frames {}..={} ({}), masks {}, {}",
-        c.first_frame,
+        c.first_frame(),
         last,
-        c.frame_count,
-        c.mask_mode,
-        match c.mouth {
+        c.frame_count(),
+        c.mask_mode(),
+        match c.mouth() {
             Some(v) => format!("visible mouth interior {v}"),
             None => "no mouth label (the over-mouth term is off)".into(),
         }
@@ -35,7 +35,7 @@ pub fn capture(c: &Capture, pixels: Option<&[[f64; 3]]>) {
         None => "-".to_string(),
         Some(p) => {
             let [u, l, m] = p[k];
-            match (c.mask_mode, c.mouth) {
+            match (c.mask_mode(), c.mouth()) {
                 (jawtrack::capture::MaskMode::Combined, Some(_)) => format!("{u:.0} / {m:.0}"),
                 (jawtrack::capture::MaskMode::Combined, None) => format!("{u:.0}"),
                 (_, Some(_)) => format!("{u:.0} / {l:.0} / {m:.0}"),
@@ -45,16 +45,16 @@ pub fn capture(c: &Capture, pixels: Option<&[[f64; 3]]>) {
     };
     println!(
         "camera  image      mask       masks found  mean px per mask ({})  distortion",
-        match (c.mask_mode, c.mouth) {
+        match (c.mask_mode(), c.mouth()) {
             (jawtrack::capture::MaskMode::Combined, Some(_)) => "teeth / mouth",
             (jawtrack::capture::MaskMode::Combined, None) => "teeth",
             (_, Some(_)) => "upper / lower / mouth",
             (_, None) => "upper / lower",
         }
     );
-    for (i, cam) in c.cameras.iter().enumerate() {
+    for (i, cam) in c.cameras().iter().enumerate() {
         let k = &cam.calibrated;
-        let in_range = cam.frames_present.range(c.first_frame..=last).count();
+        let in_range = cam.frames_present.range(c.first_frame()..=last).count();
         println!(
             "{:<6}  {}x{}  {:<9}  {:>5}/{:<5}  {:<20}  {}",
             k.name,
@@ -64,7 +64,7 @@ pub fn capture(c: &Capture, pixels: Option<&[[f64; 3]]>) {
                 .map(|(w, h)| format!("{w}x{h}"))
                 .unwrap_or_else(|| "none".into()),
             in_range,
-            c.frame_count,
+            c.frame_count(),
             mean_px(i),
             match (k.has_distortion(), k.lens_covers_the_image()) {
                 (false, _) => "no".to_string(),
@@ -96,12 +96,12 @@ pub fn capture(c: &Capture, pixels: Option<&[[f64; 3]]>) {
             hi[2] - lo[2]
         );
     };
-    describe("upper", &c.upper);
-    describe("lower", &c.lower);
-    if let Some(m) = &c.mandible {
+    describe("upper", &c.upper());
+    describe("lower", &c.lower());
+    if let Some(m) = &c.mandible() {
         describe("mandible", m);
     }
-    match &c.init {
+    match &c.init() {
         None => println!("init.json: absent (tracking will need first-frame poses)"),
         Some(init) => {
             let kind = |a: &ArchInit| match a {
@@ -115,7 +115,7 @@ pub fn capture(c: &Capture, pixels: Option<&[[f64; 3]]>) {
             );
         }
     }
-    match &c.gt {
+    match &c.gt() {
         None => println!("ground truth: none"),
         Some(gt) => println!("ground truth: {} frames", gt.len()),
     }

@@ -29,8 +29,8 @@ pub fn open_and_check(
     if !decode_all {
         return Ok((capture, None));
     }
-    let mut pixels = vec![LabelPixels::default(); capture.cameras.len()];
-    let bar = super::progress_bar(capture.frame_count as u64, "decoding masks");
+    let mut pixels = vec![LabelPixels::default(); capture.cameras().len()];
+    let bar = super::progress_bar(capture.frame_count() as u64, "decoding masks");
     for frame in capture.frames() {
         let masks = capture
             .load_masks(frame)

@@ -67,7 +67,7 @@ pub fn run(a: Args) -> anyhow::Result<()> {
         .map(|s| parse_frames(s, &capture))
         .transpose()?;
     let existing = capture
-        .cameras
+        .cameras()
         .iter()
         .map(|c| c.frames_present.len())
         .sum::<usize>();
@@ -75,10 +75,10 @@ pub fn run(a: Args) -> anyhow::Result<()> {
         anyhow::bail!(
             "{} already holds {existing} masks (perhaps corrected by hand): track from them \
              with `jawtrack track`, or pass --force to make them again",
-            capture.mask_dir.display()
+            capture.mask_dir().display()
         );
     }
-    if capture.mouth.is_none() {
+    if capture.mouth().is_none() {
         eprintln!(
             "note: capture.json's masks block has no `mouth` value, so the masks carry the \
              teeth alone (add e.g. \"mouth\": 40 to keep the mouth interior)"
@@ -112,8 +112,8 @@ pub fn run(a: Args) -> anyhow::Result<()> {
             segmenter.seconds / summary.tracked_now as f64
         );
     }
-    println!("masks written to {}:", capture.mask_dir.display());
-    for (cam, c) in capture.cameras.iter().zip(&segmenter.counts) {
+    println!("masks written to {}:", capture.mask_dir().display());
+    for (cam, c) in capture.cameras().iter().zip(&segmenter.counts) {
         println!(
             "  {:<8} {} segmented, {} dark (lights off), {} with the arches out of view, {} without a picture",
             cam.calibrated.name, c.segmented, c.dark, c.out_of_view, c.no_picture

@@ -64,9 +64,9 @@ pub fn run(a: Args) -> anyhow::Result<()> {
             )
             .with_context(|| format!("invalid capture {}", dir.display()))?;
             let meshes = Meshes {
-                upper: Some(capture.upper.clone()),
-                lower: capture.lower.clone(),
-                mandible: mandible.or_else(|| capture.mandible.clone()),
+                upper: Some(capture.upper().clone()),
+                lower: capture.lower().clone(),
+                mandible: mandible.or_else(|| capture.mandible().cloned()),
             };
             let tracked = a
                 .tracks

@@ -252,10 +252,10 @@ pub struct Scene {
 impl Scene {
     pub fn from_capture(capture: &Capture) -> Scene {
         Scene {
-            cameras: capture.cameras.iter().map(|c| c.mask_camera()).collect(),
-            upper: capture.upper.clone(),
-            lower: capture.lower.clone(),
-            mode: capture.mask_mode,
+            cameras: capture.cameras().iter().map(|c| c.mask_camera()).collect(),
+            upper: capture.upper().clone(),
+            lower: capture.lower().clone(),
+            mode: capture.mask_mode(),
         }
     }
 

@@ -18,7 +18,6 @@
 //! units) and points the intuitive way: d1 up opens the mouth, d2 up moves the chin to the
 //! subject's left (+x), d3 up moves it forward (+z).
 
-
 use nalgebra::{Vector3, Vector6};
 use serde::{Deserialize, Serialize};
 

@@ -55,16 +55,16 @@ pub struct Segmenter<'c> {
 /// the capture's cameras told that their masks will have that size (divided by the
 /// capture's `mask_reduce`), so tracking can be set up before the first mask exists.
 pub fn prepare(capture: &mut Capture) -> Result<Vec<(u32, u32)>> {
-    let mut sizes = Vec::with_capacity(capture.cameras.len());
-    for k in 0..capture.cameras.len() {
+    let mut sizes = Vec::with_capacity(capture.cameras().len());
+    for k in 0..capture.cameras().len() {
         let path = capture
             .frames()
             .find_map(|f| capture.image_path(k, f))
             .ok_or_else(|| Error::Missing {
                 path: capture
-                    .dir
+                    .dir()
                     .join("images")
-                    .join(&capture.cameras[k].calibrated.name),
+                    .join(&capture.cameras()[k].calibrated.name),
                 what: "pictures of the capture's frames (images/<camera>/<frame:06>.png|jpg, \
                        from `jawtrack import video`)"
                     .into(),
@@ -73,8 +73,8 @@ pub fn prepare(capture: &mut Capture) -> Result<Vec<(u32, u32)>> {
             path: path.clone(),
             problem: e.to_string(),
         })?;
-        check_size(&path, (w, h), &capture.cameras[k].calibrated)?;
-        let r = capture.mask_reduce.max(1);
+        check_size(&path, (w, h), &capture.cameras()[k].calibrated)?;
+        let r = capture.mask_reduce().max(1);
         if w % r != 0 || h % r != 0 {
             return Err(Error::invalid(
                 &path,
@@ -82,7 +82,7 @@ pub fn prepare(capture: &mut Capture) -> Result<Vec<(u32, u32)>> {
                 format!("{w}x{h} is not divisible by the mask reduction {r}"),
             ));
         }
-        capture.cameras[k].mask_size = Some((w / r, h / r));
+        capture.expect_masks(k, (w / r, h / r));
         sizes.push((w, h));
     }
     Ok(sizes)
@@ -120,13 +120,13 @@ impl<'c> Segmenter<'c> {
     ) -> Segmenter<'c> {
         Segmenter {
             cameras: capture
-                .cameras
+                .cameras()
                 .iter()
                 .zip(sizes)
                 .map(|(c, &(w, h))| c.calibrated.scaled_to(w, h))
                 .collect(),
-            models: vec![None; capture.cameras.len()],
-            counts: vec![CameraCounts::default(); capture.cameras.len()],
+            models: vec![None; capture.cameras().len()],
+            counts: vec![CameraCounts::default(); capture.cameras().len()],
             capture,
             settings,
             seconds: 0.0,
@@ -177,8 +177,8 @@ impl<'c> Segmenter<'c> {
             let drawn = render_labels(
                 cam,
                 &[
-                    (&capture.upper, &poses.upper, UPPER_BIT, UPPER_BIT),
-                    (&capture.lower, &poses.lower, LOWER_BIT, LOWER_BIT),
+                    (&capture.upper(), &poses.upper, UPPER_BIT, UPPER_BIT),
+                    (&capture.lower(), &poses.lower, LOWER_BIT, LOWER_BIT),
                 ],
             );
             for (p, d) in prior.iter_mut().zip(drawn) {
@@ -200,7 +200,7 @@ impl<'c> Segmenter<'c> {
                 }
             };
         counts.segmented += 1;
-        let values = encode_values(&labels, capture.mask_mode, capture.mouth);
+        let values = encode_values(&labels, capture.mask_mode(), capture.mouth());
         write_atomic(
             &mask_path,
             &encode_png(&values, w, h, image::ExtendedColorType::L8),
@@ -211,10 +211,10 @@ impl<'c> Segmenter<'c> {
             // As the tracker reads a written mask back: the mouth only when declared.
             data: values
                 .iter()
-                .map(|&v| capture.mask_mode.label_of(v, capture.mouth))
+                .map(|&v| capture.mask_mode().label_of(v, capture.mouth()))
                 .collect(),
         };
-        Ok(Some(mask.reduced(capture.mask_reduce)))
+        Ok(Some(mask.reduced(capture.mask_reduce())))
     }
 }
 

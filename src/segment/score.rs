@@ -44,7 +44,7 @@ impl Tally {
 
 /// The capture's masks of `frames` against gt/masks/; `None` when it has no true masks.
 pub fn score_masks(capture: &Capture, frames: Range<u32>) -> Result<Option<MaskScore>> {
-    let truth_dir = capture.dir.join("gt").join("masks");
+    let truth_dir = capture.dir().join("gt").join("masks");
     if !truth_dir.is_dir() {
         return Ok(None);
     }
@@ -55,7 +55,7 @@ pub fn score_masks(capture: &Capture, frames: Range<u32>) -> Result<Option<MaskS
         ..Default::default()
     };
     for frame in frames {
-        for (k, cam) in capture.cameras.iter().enumerate() {
+        for (k, cam) in capture.cameras().iter().enumerate() {
             let Some(file) = cam.file_frame(frame) else {
                 continue;
             };
@@ -65,10 +65,10 @@ pub fn score_masks(capture: &Capture, frames: Range<u32>) -> Result<Option<MaskS
             if !truth_path.exists() {
                 continue;
             }
-            let truth = decode_mask(&truth_path, capture.mask_mode, capture.mouth)?;
+            let truth = decode_mask(&truth_path, capture.mask_mode(), capture.mouth())?;
             let mask_path = capture.mask_path(k, frame);
             let made = if mask_path.exists() {
-                decode_mask(&mask_path, capture.mask_mode, capture.mouth)?.data
+                decode_mask(&mask_path, capture.mask_mode(), capture.mouth())?.data
             } else {
                 vec![0; truth.data.len()]
             };
@@ -96,10 +96,10 @@ pub fn score_masks(capture: &Capture, frames: Range<u32>) -> Result<Option<MaskS
     if score.pictures == 0 {
         return Ok(None);
     }
-    let per_arch = matches!(capture.mask_mode, MaskMode::PerArch { .. });
+    let per_arch = matches!(capture.mask_mode(), MaskMode::PerArch { .. });
     score.teeth_iou = tallies[0].iou();
     score.upper_iou = per_arch.then(|| tallies[1].iou());
     score.lower_iou = per_arch.then(|| tallies[2].iou());
-    score.mouth_iou = capture.mouth.map(|_| tallies[3].iou());
+    score.mouth_iou = capture.mouth().map(|_| tallies[3].iou());
     Ok(Some(score))
 }

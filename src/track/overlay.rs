@@ -27,7 +27,7 @@ pub fn write_overlays(
     masks: &FrameMasks,
     poses: &ArchPoses,
 ) -> Result<()> {
-    for (k, cam_info) in capture.cameras.iter().enumerate() {
+    for (k, cam_info) in capture.cameras().iter().enumerate() {
         let Some(mask) = &masks.masks[k] else {
             continue;
         };
@@ -71,7 +71,7 @@ pub fn picture(
     poses: &ArchPoses,
     colours: ArchColours,
 ) -> Result<Option<(image::RgbImage, Option<[u32; 4]>)>> {
-    let Some(cam) = capture.cameras[k].mask_camera() else {
+    let Some(cam) = capture.cameras()[k].mask_camera() else {
         return Ok(None);
     };
     let lower_body = match colours {
@@ -81,8 +81,8 @@ pub fn picture(
     let classes = render_labels(
         &cam,
         &[
-            (&capture.upper, &poses.upper, CLASS_BODY, CLASS_BOI),
-            (&capture.lower, &poses.lower, lower_body, CLASS_BOI),
+            (&capture.upper(), &poses.upper, CLASS_BODY, CLASS_BOI),
+            (&capture.lower(), &poses.lower, lower_body, CLASS_BOI),
         ],
     );
     let (w, h) = (cam.width, cam.height);

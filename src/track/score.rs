@@ -54,10 +54,10 @@ pub fn mean_distance(vertices: &[nalgebra::Vector3<f64>], a: &Pose, b: &Pose) ->
 /// Score `tracked` (poses per frame, with their records for status and area error) against
 /// the capture's ground truth; frames without ground truth are skipped.
 pub fn score(capture: &Capture, tracked: &[(FrameRecordJson, ArchPoses)]) -> Option<ScoreReport> {
-    capture.gt.as_ref()?;
+    capture.gt()?;
     let vertices = [
-        sample_vertices(&capture.upper),
-        sample_vertices(&capture.lower),
+        sample_vertices(&capture.upper()),
+        sample_vertices(&capture.lower()),
     ];
     let mut errors: [[Vec<f64>; 3]; 3] = Default::default(); // [upper, lower, jaw][vertex, rot, trans]
     let mut area: [Vec<f64>; 2] = Default::default();

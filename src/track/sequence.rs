@@ -192,7 +192,7 @@ impl TrackSettings {
     /// replace when its masks label the mouth and the over-mouth term is on.
     pub fn for_capture(&self, capture: &Capture) -> TrackSettings {
         let mut s = self.clone();
-        if capture.mouth.is_some() && self.search.mouth_weight > 0.0 {
+        if capture.mouth().is_some() && self.search.mouth_weight > 0.0 {
             s.jaw_prior_grid = self.labelled.jaw_prior_grid;
             s.jaw_prior_nearest = self.labelled.jaw_prior_nearest;
             s.search.sample_rounds = self.labelled.sample_rounds;
@@ -269,8 +269,8 @@ pub fn track_frames(
     // covering the upper arch's pixels, which the contact penalty forbids (docs/tracking.md).
     // Which side of each arch the other is on comes from the poses tracking starts from.
     let prior = JawPrior::new(
-        &capture.upper,
-        &capture.lower,
+        &capture.upper(),
+        &capture.lower(),
         &state.start.jaw(),
         settings.jaw_prior_grid,
         settings.jaw_prior_fine_grid,
@@ -279,8 +279,8 @@ pub fn track_frames(
     );
     let contact = (settings.contact_weight > 0.0).then(|| {
         Contact::new(
-            &capture.upper,
-            &capture.lower,
+            &capture.upper(),
+            &capture.lower(),
             &state.start.jaw(),
             ContactSettings {
                 weight: settings.contact_weight,
@@ -288,12 +288,12 @@ pub fn track_frames(
             },
         )
     });
-    let per_arch = matches!(capture.mask_mode, MaskMode::PerArch { .. });
+    let per_arch = matches!(capture.mask_mode(), MaskMode::PerArch { .. });
     let manifold =
         (per_arch && settings.jaw_manifold_weight > 0.0 && prior.fine.len() >= 4).then(|| {
             JawManifold::new(
                 &prior.fine,
-                &capture.lower,
+                &capture.lower(),
                 settings.jaw_manifold_weight,
                 settings.jaw_manifold_tolerance_mm,
             )
@@ -366,7 +366,7 @@ fn track_frame(
     // constant-velocity extrapolation, or the latest low-confidence estimate since.
     let starts = starts(state);
     let mut poses = state.last;
-    let passes = match capture.mask_mode {
+    let passes = match capture.mask_mode() {
         MaskMode::PerArch { .. } => settings.per_arch_passes,
         MaskMode::Combined => settings.combined_passes,
     };

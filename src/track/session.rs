@@ -92,7 +92,7 @@ impl<'c> Session<'c> {
         let range = options.frames.clone().unwrap_or(all.clone());
         if range.start < all.start || range.end > all.end || range.start >= range.end {
             return Err(Error::invalid(
-                &capture.dir,
+                &capture.dir(),
                 "frames",
                 format!(
                     "{}..{} asked for, but the capture has frames {}..{}",
@@ -198,21 +198,21 @@ impl<'c> Session<'c> {
 /// same energy.
 pub fn fingerprint(capture: &Capture, settings: &TrackSettings) -> String {
     let mut hash = Fnv::default();
-    for cam in &capture.cameras {
+    for cam in capture.cameras() {
         hash.write(format!("{:?} {:?}", cam.calibrated, cam.mask_size).as_bytes());
     }
     hash.write(
         format!(
             "{} {} {:?} {} {:?}",
-            capture.first_frame,
-            capture.frame_count,
-            capture.mask_mode,
-            capture.mask_reduce,
-            capture.init
+            capture.first_frame(),
+            capture.frame_count(),
+            capture.mask_mode(),
+            capture.mask_reduce(),
+            capture.init()
         )
         .as_bytes(),
     );
-    for mesh in [&capture.upper, &capture.lower] {
+    for mesh in [&capture.upper(), &capture.lower()] {
         hash.write(bytemuck::cast_slice(&mesh.positions));
         hash.write(bytemuck::cast_slice(&mesh.triangles));
         hash.write(&mesh.boi.iter().map(|&b| b as u8).collect::<Vec<u8>>());

@@ -144,7 +144,7 @@ pub fn energy(a: EnergyArgs) -> anyhow::Result<()> {
             .context("benchmark capture without ground truth")?;
         let batch = candidates(&truth, a.batch);
         let scene = Scene::from_capture(&capture);
-        let triangles = capture.lower.triangles.len();
+        let triangles = capture.lower().triangles.len();
         let mut engines: Vec<(String, Region, Box<dyn EnergyEngine>)> = Vec::new();
         let want = |b: &str| a.backends.iter().any(|x| x == b);
         for region in [Region::Relevant, Region::Footprint, Region::FullFrame] {

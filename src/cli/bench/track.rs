@@ -193,9 +193,9 @@ pub fn track(a: TrackArgs) -> anyhow::Result<()> {
             }
             let mut capture = Capture::open_with(&dir, a.load.open_options())?;
             if label == MouthLabel::Without {
-                capture.mouth = None;
+                capture = capture.without_mouth_label();
             }
-            labelled |= capture.mouth.is_some();
+            labelled |= capture.mouth().is_some();
             let out = dir.join("tracks.json");
             let options = SessionOptions {
                 backend: a.engine.backend.into(),
@@ -216,7 +216,7 @@ pub fn track(a: TrackArgs) -> anyhow::Result<()> {
                 a.engine.region.map_or(Region::Relevant, Into::into),
             )?;
             let mut engine = opened.engine;
-            let vertices = jawtrack::track::score::sample_vertices(&capture.lower);
+            let vertices = jawtrack::track::score::sample_vertices(&capture.lower());
             let tracked: std::collections::HashMap<u32, ArchPoses> = summary
                 .records
                 .iter()
@@ -251,7 +251,7 @@ pub fn track(a: TrackArgs) -> anyhow::Result<()> {
                 eprintln!(
                     "{} {} seed {seed} frame {frame}: jaw {:.3} mm, floor {:.3} mm; E tracked {et:.0}, at the floor {ef:.0}",
                     name_of(preset),
-                    if capture.mouth.is_some() {
+                    if capture.mouth().is_some() {
                         "labelled"
                     } else {
                         "unlabelled"
