@@ -12,7 +12,7 @@ use jawtrack::skin::eval::evaluate;
 use jawtrack::skin::format::FaceSequence;
 use jawtrack::skin::model::{SkinSettings, learn_single, retarget_to};
 use jawtrack::skin::regress::RegressSettings;
-use jawtrack::skin::subject::{Subject, vertex_error};
+use jawtrack::skin::subject::Subject;
 use jawtrack::synth::face::{FaceSynthOptions, generate_faces};
 
 /// Three subjects of 240 frames, written once per test binary.
@@ -91,7 +91,7 @@ fn a_synthetic_set_is_in_the_format_and_the_same_for_the_same_seed() {
     assert_eq!(cal.len(), 5);
     // The rest pose is found from a frame at rest: the pose the sequence starts in.
     let (rest, rest_frame, _) = s.rest().unwrap();
-    let off = vertex_error(&s.mandible, &rest, &s.jaw[0].unwrap());
+    let off = s.metric.mean_distance(&rest, &s.jaw[0].unwrap());
     assert!(
         off < 0.3,
         "rest from frame {rest_frame} is {off} mm from the start's pose"
@@ -221,8 +221,7 @@ fn a_model_predicts_its_own_subject_and_survives_a_round_trip_through_its_file()
     let err: f64 = (0..200)
         .step_by(10)
         .map(|i| {
-            vertex_error(
-                &s.mandible,
+            s.metric.mean_distance(
                 &back.predict(&s.skin_features(&m.skin_points, i)),
                 &s.jaw[i].unwrap(),
             )
@@ -310,11 +309,11 @@ fn fill_error(misled: Option<u32>) -> (f64, Vec<u32>) {
         );
         let poses = r.poses(path).unwrap();
         if lost(r.frame) {
-            errors.push(vertex_error(
-                &target.mandible,
-                &poses.jaw(),
-                &target.jaw[i].unwrap(),
-            ));
+            errors.push(
+                target
+                    .metric
+                    .mean_distance(&poses.jaw(), &target.jaw[i].unwrap()),
+            );
         }
     }
     let mean = errors.iter().sum::<f64>() / errors.len() as f64;

@@ -1,5 +1,7 @@
-//! The paper's error between two jaw poses: the largest distance between corresponding
-//! vertices of the mesh (mandible or lower arch) placed by each.
+//! The error between two poses of one mesh (an arch, the mandible): the distance between
+//! corresponding vertices of the mesh placed by each, over the vertices its faces use. The
+//! mean (`mean_distance`) is the "mean vertex error" every report gives; the largest
+//! (`max_distance`) is the paper's.
 
 use nalgebra::Vector3;
 
@@ -83,6 +85,18 @@ impl MeshMetric {
 
     pub fn points(&self) -> &[Vector3<f64>] {
         &self.points
+    }
+
+    /// The mean vertex error: the mean distance (mm) between corresponding vertices of the
+    /// mesh placed by `a` and by `b`.
+    pub fn mean_distance(&self, a: &Pose, b: &Pose) -> f64 {
+        let d = b.inverse().compose(a);
+        let m = d.rotation.matrix() - nalgebra::Matrix3::identity();
+        self.points
+            .iter()
+            .map(|p| (m * p + d.translation).norm())
+            .sum::<f64>()
+            / self.points.len() as f64
     }
 
     /// The mean vertex distance (mm) between the mesh placed by `a` and by `b`, each vertex

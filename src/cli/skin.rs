@@ -8,7 +8,7 @@ use jawtrack::io::write_json_atomic;
 use jawtrack::skin::eval::{Evaluation, evaluate};
 use jawtrack::skin::format::{FaceSequence, subject_dirs};
 use jawtrack::skin::model::{SkinModel, SkinSettings, learn_multi, learn_single, retarget_to};
-use jawtrack::skin::subject::{Subject, vertex_error};
+use jawtrack::skin::subject::Subject;
 
 #[derive(clap::Subcommand)]
 pub enum Command {
@@ -206,21 +206,14 @@ pub fn run(c: Command) -> anyhow::Result<()> {
             guard(&out, &[&model], &[&face])?;
             let (m, s) = model_and_face(&model, &face)?;
             let clock = Instant::now();
-            let poses: Vec<_> = (0..s.frames.len())
-                .map(|i| m.predict(&s.skin_features(&m.skin_points, i)))
-                .collect();
+            let poses = m.predict_sequence(&s);
             let per_frame = clock.elapsed().as_secs_f64() * 1e3 / poses.len().max(1) as f64;
             jawtrack::formats::write_jaw_poses(&out, &s.frames, &poses)?;
             println!(
                 "predicted {} frames, {per_frame:.3} ms a frame (reading excluded)",
                 poses.len()
             );
-            let errors: Vec<f64> = s
-                .jaw
-                .iter()
-                .zip(&poses)
-                .filter_map(|(t, p)| t.map(|t| vertex_error(&s.mandible, p, &t)))
-                .collect();
+            let errors = s.errors_against_jaw(&poses);
             if !errors.is_empty() {
                 let st = jawtrack::stats::Stats::of(&errors);
                 println!(

@@ -10,7 +10,7 @@ use serde::Serialize;
 use super::baseline::baseline_jaw;
 use super::features::SkinPoint;
 use super::model::{SkinModel, SkinSettings, learn_multi, learn_single, retarget_to, skin_points};
-use super::subject::{Subject, bone_point_error, vertex_error};
+use super::subject::{Subject, bone_point_error};
 use crate::error::{Error, Result};
 use crate::geometry::Pose;
 
@@ -78,7 +78,7 @@ fn score(s: &Subject, rows: &[usize], predict: &dyn Fn(usize) -> Pose) -> Scored
     for &i in rows {
         let Some(truth) = s.jaw[i] else { continue };
         let p = predict(i);
-        out.mm.push(vertex_error(&s.mandible, &p, &truth));
+        out.mm.push(s.metric.mean_distance(&p, &truth));
         out.bone.push(bone_point_error(&s.bone, &p, &truth));
     }
     out

@@ -85,6 +85,13 @@ impl SkinModel {
         jaw_from_bone(&self.subject.bone(), &self.subject.rest_pose(), &b)
     }
 
+    /// The jaw in every frame of `s`, in its frames' order.
+    pub fn predict_sequence(&self, s: &Subject) -> Vec<Pose> {
+        (0..s.frames.len())
+            .map(|i| self.predict(&s.skin_features(&self.skin_points, i)))
+            .collect()
+    }
+
     /// Check that `s` has the topology the skin points refer to.
     pub fn check_topology(&self, s: &Subject, path: &std::path::Path) -> Result<()> {
         if s.neutral.positions.len() != self.skin_vertices

@@ -6,6 +6,7 @@ use rayon::prelude::*;
 
 use super::features::{SkinPoint, bone_features, bone_points, skin_features};
 use super::format::{CalibrationJson, FaceSequence};
+use crate::anatomy::MeshMetric;
 use crate::error::{Error, Result};
 use crate::geometry::Pose;
 use crate::mesh::Mesh;
@@ -27,6 +28,8 @@ pub struct Subject {
     pub jaw: Vec<Option<Pose>>,
     pub calibration: Option<CalibrationJson>,
     pub bone: [Vector3<f64>; 5],
+    /// The mandible's vertices, on which a jaw pose's error is measured.
+    pub metric: MeshMetric,
 }
 
 impl Subject {
@@ -47,10 +50,21 @@ impl Subject {
             frames,
             skin,
             bone: bone_points(&seq.mandible),
+            metric: MeshMetric::new(&seq.mandible),
             neutral: seq.neutral.clone(),
             mandible: seq.mandible.clone(),
             calibration: seq.calibration,
         })
+    }
+
+    /// The mean vertex error (mm) of `poses` (one per frame) against the jaw poses the
+    /// sequence has, frame by frame where it has one.
+    pub fn errors_against_jaw(&self, poses: &[Pose]) -> Vec<f64> {
+        self.jaw
+            .iter()
+            .zip(poses)
+            .filter_map(|(truth, p)| truth.map(|t| self.metric.mean_distance(p, &t)))
+            .collect()
     }
 
     /// The index in `frames` of frame number `f`.
@@ -171,16 +185,6 @@ pub fn jaw_from_bone(bone: &[Vector3<f64>; 5], rest: &Pose, b: &[f64]) -> Pose {
     crate::geometry::fit_rigid(&at_rest, &moved)
         .map(|t| t.compose(rest))
         .unwrap_or(*rest)
-}
-
-/// Mean distance (mm) over the mandible's vertices between two jaw poses: the error measure.
-pub fn vertex_error(mandible: &Mesh, a: &Pose, b: &Pose) -> f64 {
-    let n = mandible.positions.len().max(1) as f64;
-    mandible
-        .points()
-        .map(|p| (a.transform_point(&p) - b.transform_point(&p)).norm())
-        .sum::<f64>()
-        / n
 }
 
 /// Mean distance (mm) over the bone points: the paper's own measure.

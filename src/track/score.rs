@@ -2,11 +2,10 @@
 //! upper), the mean vertex distance (mm), rotation error (deg) and translation error (mm), and
 //! the paper's area error; median, 95th percentile and maximum over frames.
 
+use crate::anatomy::MeshMetric;
 use crate::arch::{Arch, ArchPoses};
 use crate::capture::Capture;
 use crate::formats::{FrameRecordJson, Status};
-use crate::geometry::Pose;
-use crate::mesh::Mesh;
 
 pub use crate::stats::Stats;
 
@@ -32,32 +31,13 @@ pub struct ScoreReport {
     pub per_frame: Vec<(u32, [f64; 3])>,
 }
 
-/// Vertices the error is measured on: every used vertex, thinned to at most ~4000.
-pub fn sample_vertices(mesh: &Mesh) -> Vec<nalgebra::Vector3<f64>> {
-    let m = mesh.compacted();
-    let step = (m.positions.len() / 4000).max(1);
-    m.positions
-        .iter()
-        .step_by(step)
-        .map(|p| nalgebra::Vector3::new(p[0] as f64, p[1] as f64, p[2] as f64))
-        .collect()
-}
-
-pub fn mean_distance(vertices: &[nalgebra::Vector3<f64>], a: &Pose, b: &Pose) -> f64 {
-    vertices
-        .iter()
-        .map(|v| (a.transform_point(v) - b.transform_point(v)).norm())
-        .sum::<f64>()
-        / vertices.len().max(1) as f64
-}
-
 /// Score `tracked` (poses per frame, with their records for status and area error) against
 /// the capture's ground truth; frames without ground truth are skipped.
 pub fn score(capture: &Capture, tracked: &[(FrameRecordJson, ArchPoses)]) -> Option<ScoreReport> {
     capture.gt()?;
-    let vertices = [
-        sample_vertices(&capture.upper()),
-        sample_vertices(&capture.lower()),
+    let metrics = [
+        MeshMetric::new(capture.upper()),
+        MeshMetric::new(capture.lower()),
     ];
     let mut errors: [[Vec<f64>; 3]; 3] = Default::default(); // [upper, lower, jaw][vertex, rot, trans]
     let mut area: [Vec<f64>; 2] = Default::default();
@@ -74,13 +54,13 @@ pub fn score(capture: &Capture, tracked: &[(FrameRecordJson, ArchPoses)]) -> Opt
         }
         let mut frame_err = [0.0; 3];
         let pairs = [
-            (poses.upper, gt.upper, &vertices[0]),
-            (poses.lower, gt.lower, &vertices[1]),
-            (poses.jaw(), gt.jaw(), &vertices[1]),
+            (poses.upper, gt.upper, &metrics[0]),
+            (poses.lower, gt.lower, &metrics[1]),
+            (poses.jaw(), gt.jaw(), &metrics[1]),
         ];
-        for (k, (t, g, verts)) in pairs.iter().enumerate() {
+        for (k, (t, g, metric)) in pairs.iter().enumerate() {
             let (r, tr) = t.distance_to(g);
-            let v = mean_distance(verts, t, g);
+            let v = metric.mean_distance(t, g);
             errors[k][0].push(v);
             errors[k][1].push(r.to_degrees());
             errors[k][2].push(tr);

@@ -6,7 +6,7 @@ use std::time::Instant;
 
 use jawtrack::skin::format::FaceSequence;
 use jawtrack::skin::model::{SkinSettings, learn_single};
-use jawtrack::skin::subject::{Subject, vertex_error};
+use jawtrack::skin::subject::Subject;
 use jawtrack::stats::Stats;
 use jawtrack::synth::face::{FaceSynthOptions, generate_faces};
 
@@ -53,11 +53,8 @@ pub fn skin(a: SkinArgs) -> anyhow::Result<()> {
         .iter()
         .zip(&poses)
         .map(|(&i, p)| {
-            vertex_error(
-                &s.mandible,
-                p,
-                &s.jaw[i].expect("synthetic subjects have every pose"),
-            )
+            s.metric
+                .mean_distance(p, &s.jaw[i].expect("synthetic subjects have every pose"))
         })
         .collect();
     let st = Stats::of(&errors);

@@ -216,7 +216,7 @@ pub fn track(a: TrackArgs) -> anyhow::Result<()> {
                 a.engine.region.map_or(Region::Relevant, Into::into),
             )?;
             let mut engine = opened.engine;
-            let vertices = jawtrack::track::score::sample_vertices(&capture.lower());
+            let lower_metric = jawtrack::anatomy::MeshMetric::new(capture.lower());
             let tracked: std::collections::HashMap<u32, ArchPoses> = summary
                 .records
                 .iter()
@@ -245,7 +245,7 @@ pub fn track(a: TrackArgs) -> anyhow::Result<()> {
                     shortfall += 1;
                 }
                 let (fj, tj) = (f.jaw(), truth.jaw());
-                let floor_jaw = jawtrack::track::score::mean_distance(&vertices, &fj, &tj);
+                let floor_jaw = lower_metric.mean_distance(&fj, &tj);
                 floor.push(floor_jaw);
                 ratio.push(err[2] / floor_jaw.max(0.01));
                 eprintln!(
