@@ -14,9 +14,9 @@
 //!    point goes to the deformed envelope's point (the translation solved so that the new
 //!    subject's reference point lands exactly there: Eq. 10 with the largest weight), and the
 //!    rotation is the source rig's rotation for a reference point at that same position (both
-//!    frames share their anatomical axes, and position predicts rotation better than the
-//!    relative place in the envelope: measured, reduced adaptation 0.90 mm against 1.77 mm
-//!    on the synthetic pair of `jawtrack bench rig`). In full adaptation
+//!    frames share their anatomical axes, and where the condyles are in the joint decides how
+//!    the jaw is turned, more than how far along its envelope it is; docs/rigs.md compares
+//!    the two). In full adaptation
 //!    it is corrected by a rotation affine in the position, fitted to the five measured poses
 //!    (the role of Eq. 14 and 12: it agrees with them and varies smoothly). The origin is the
 //!    landmarks' origin of the new mandible.
@@ -77,8 +77,8 @@ pub fn extremes(points: &[Vector3<f64>]) -> [usize; 5] {
 /// Procrustes with scale and without rotation: p ↦ c' + k·(p − c). Both subjects' poses are
 /// in frames with the same anatomical axes (the capture format's convention: y up, z forward),
 /// so only position and size differ; a rotation fitted to five points of two differently
-/// shaped envelopes would be spurious (measured: 3° between the two synthetic subjects, which
-/// turns every retargeted pose and costs millimetres at the condyles).
+/// shaped envelopes would be spurious, and it would turn every retargeted pose about the
+/// condyles.
 struct Similarity {
     translation: Vector3<f64>,
     centre: Vector3<f64>,
@@ -93,8 +93,8 @@ impl Similarity {
             a.iter().sum::<Vector3<f64>>() / n,
             b.iter().sum::<Vector3<f64>>() / n,
         );
-        // One scale for all axes (per-axis scales fitted to five points overshoot: measured,
-        // a full adaptation whose worst pose erred by 106 mm).
+        // One scale for all axes: five points do not determine three scales, and per-axis
+        // scales fitted to them overshoot along the axis the points barely span.
         let spread = |v: &[Vector3<f64>], c: &Vector3<f64>| {
             v.iter().map(|p| (p - c).norm_squared()).sum::<f64>()
         };
@@ -124,9 +124,9 @@ pub fn extremal_poses(poses: &[Pose], frame: &JawFrame) -> [Pose; 5] {
 }
 
 /// Smooth interpolation over the cube from the five points: normalised Gaussian weights (a
-/// partition of unity), so the field never exceeds the values it is given (an interpolating
-/// Gaussian field overshoots between the points: measured, a full adaptation whose worst pose
-/// erred by 18 mm); near each point it takes that point's value.
+/// partition of unity), so the field never exceeds the values it is given, as an
+/// interpolating Gaussian field does between the points; near each point it takes that
+/// point's value.
 struct CubeField {
     at: Vec<[f64; 3]>,
     values: Vec<Vector3<f64>>,

@@ -64,9 +64,9 @@ pub struct TrackSettings {
     /// principal directions of the jaw prior's fine grid, in the rig's se(3) coordinates)
     /// costs `jaw_manifold_weight` objective units per mm beyond. It steers both arches
     /// along the directions the energy cannot tell apart (a tilt about the incisal edge).
-    /// Per-arch masks only: with a combined mask, where one label cannot tell the arches
-    /// apart, it made the jaw worse (README). Built from the fine grid, so off with it too;
-    /// 0 turns it off.
+    /// Per-arch masks only: a combined mask's one label cannot tell the arches apart, so the
+    /// manifold would pull the jaw toward the average joint against evidence it cannot
+    /// weigh. Built from the fine grid, so off with it too; 0 turns it off.
     pub jaw_manifold_weight: f64,
     pub jaw_manifold_tolerance_mm: f64,
     /// What replaces the fields above when the masks label the mouth (`masks.mouth`) and
@@ -74,10 +74,10 @@ pub struct TrackSettings {
     pub labelled: LabelledSettings,
 }
 
-/// With masks that label the visible mouth interior the energy is two-sided and has fewer
-/// false minima: a coarser jaw prior and one sampling round find as good poses with about
-/// 30% fewer evaluations (docs/tracking.md, "The two-sided energy"). Without the label (or
-/// with the term off) the settings above apply as they are, so such captures track as before.
+/// The profile for masks that label the visible mouth interior: the energy is then two-sided
+/// and has fewer false minima, so a coarser jaw prior and one sampling round suffice
+/// (docs/tracking.md, "The two-sided energy", has the figures). Without the label (or with
+/// the term off) the settings above apply as they are.
 #[derive(Debug, Clone, serde::Serialize, serde::Deserialize)]
 #[serde(default, deny_unknown_fields)]
 pub struct LabelledSettings {
