@@ -6,7 +6,6 @@
 mod common;
 
 use std::path::Path;
-use std::process::Command;
 
 use common::{assert_mentions, edit_json, error_of, fresh_capture};
 use jawtrack::capture::{Capture, OpenOptions};
@@ -100,10 +99,7 @@ fn a_palette_mask_is_named_so_and_a_truncated_one_is_refused_from_its_header() {
 }
 
 fn jawtrack(args: &[&str]) -> (Option<i32>, String) {
-    let out = Command::new(env!("CARGO_BIN_EXE_jawtrack"))
-        .args(args)
-        .output()
-        .unwrap();
+    let out = common::jawtrack(args);
     (
         out.status.code(),
         String::from_utf8_lossy(&out.stderr).into(),

@@ -11,41 +11,12 @@ use std::process::{Child, Command, Stdio};
 use std::sync::OnceLock;
 use std::time::{Duration, Instant};
 
-use common::{assert_mentions, edit_json, error_of, fresh_capture, have_ffmpeg};
+use common::{
+    assert_mentions, edit_json, error_of, fresh_capture, have_ffmpeg, jawtrack, ok, refused,
+};
 
 fn s(p: &Path) -> &str {
     p.to_str().unwrap()
-}
-
-fn jawtrack(args: &[&str]) -> std::process::Output {
-    Command::new(env!("CARGO_BIN_EXE_jawtrack"))
-        .args(args)
-        .output()
-        .unwrap()
-}
-
-/// The command fails with a message (no panic) that mentions each of `parts`.
-fn refused(args: &[&str], parts: &[&str]) -> String {
-    let out = jawtrack(args);
-    let err = String::from_utf8_lossy(&out.stderr).into_owned();
-    assert!(
-        !out.status.success(),
-        "accepted: jawtrack {args:?}\n{}",
-        String::from_utf8_lossy(&out.stdout)
-    );
-    assert!(!err.contains("panicked"), "panic: jawtrack {args:?}\n{err}");
-    assert_mentions(&err, parts);
-    err
-}
-
-fn ok(args: &[&str]) -> String {
-    let out = jawtrack(args);
-    assert!(
-        out.status.success(),
-        "jawtrack {args:?}: {}",
-        String::from_utf8_lossy(&out.stderr)
-    );
-    String::from_utf8_lossy(&out.stdout).into_owned()
 }
 
 /// A synthetic capture and a rig learned on it, made once per test binary.

@@ -9,6 +9,40 @@ use jawtrack::synth::{MaskKind, Preset, SynthOptions, generate};
 
 pub mod browser;
 
+/// Run the binary under test with `args`.
+pub fn jawtrack(args: &[&str]) -> std::process::Output {
+    Command::new(env!("CARGO_BIN_EXE_jawtrack"))
+        .args(args)
+        .output()
+        .unwrap()
+}
+
+/// Run it and expect success: its standard output.
+pub fn ok(args: &[&str]) -> String {
+    let out = jawtrack(args);
+    assert!(
+        out.status.success(),
+        "jawtrack {args:?}: {}",
+        String::from_utf8_lossy(&out.stderr)
+    );
+    String::from_utf8_lossy(&out.stdout).into_owned()
+}
+
+/// Run it and expect a refusal, not a panic, whose message mentions each of `parts`: its
+/// standard error.
+pub fn refused(args: &[&str], parts: &[&str]) -> String {
+    let out = jawtrack(args);
+    let err = String::from_utf8_lossy(&out.stderr).into_owned();
+    assert!(
+        !out.status.success(),
+        "accepted: jawtrack {args:?}\n{}",
+        String::from_utf8_lossy(&out.stdout)
+    );
+    assert!(!err.contains("panicked"), "panic: jawtrack {args:?}\n{err}");
+    assert_mentions(&err, parts);
+    err
+}
+
 /// A small synthetic capture, written once per test binary; copy it before changing it.
 pub fn template(preset: Preset, masks: MaskKind) -> &'static Path {
     static CELLS: [OnceLock<tempfile::TempDir>; 6] = [const { OnceLock::new() }; 6];
