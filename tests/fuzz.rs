@@ -13,9 +13,11 @@
 use std::io::{Read, Write};
 use std::net::TcpStream;
 use std::path::{Path, PathBuf};
-use std::process::{Child, Command, Stdio};
+use std::process::{Command, Stdio};
 use std::sync::{Mutex, OnceLock};
 use std::time::Duration;
+
+mod common;
 
 use jawtrack::capture::{Capture, MaskMode};
 use jawtrack::mesh::{BoiSource, Mesh};
@@ -254,71 +256,39 @@ fn open_face_with_file(file: &str, bytes: &[u8]) {
 /// standard error kept in a file to look for panics.
 struct ViewServer {
     _dir: tempfile::TempDir,
-    child: Child,
+    _server: common::browser::Killed,
     port: u16,
     stderr: PathBuf,
-}
-
-impl Drop for ViewServer {
-    fn drop(&mut self) {
-        let _ = self.child.kill();
-    }
 }
 
 fn view_server() -> &'static Mutex<ViewServer> {
     static SERVER: OnceLock<Mutex<ViewServer>> = OnceLock::new();
     SERVER.get_or_init(|| {
-        let bin = env!("CARGO_BIN_EXE_jawtrack");
         let dir = tempfile::tempdir().unwrap();
         let cap = dir.path().join("cap");
         let rig = dir.path().join("rig.json");
-        let run = |args: &[&Path]| {
-            let out = Command::new(bin).args(args).output().unwrap();
-            assert!(
-                out.status.success(),
-                "{}",
-                String::from_utf8_lossy(&out.stderr)
-            );
-        };
-        let p = Path::new;
-        run(&[p("synth"), &cap, p("--frames"), p("12")]);
-        run(&[
-            p("rig"),
-            p("learn"),
-            &cap.join("gt/poses.json"),
-            p("--mesh"),
-            &cap.join("meshes/mandible.obj"),
-            p("-o"),
-            &rig,
+        let s = |p: &Path| p.to_str().unwrap().to_owned();
+        common::ok(&["synth", &s(&cap), "--frames", "12"]);
+        let (poses, mandible) = (cap.join("gt/poses.json"), cap.join("meshes/mandible.obj"));
+        common::ok(&[
+            "rig",
+            "learn",
+            &s(&poses),
+            "--mesh",
+            &s(&mandible),
+            "-o",
+            &s(&rig),
         ]);
         let stderr = dir.path().join("view.stderr");
-        let mut child = Command::new(bin)
-            .arg("view")
-            .arg(&rig)
-            .arg("--capture")
-            .arg(&cap)
-            .arg("--tracks")
-            .arg(cap.join("gt/poses.json"))
-            .args(["--port", "0"])
-            .stdout(Stdio::piped())
-            .stderr(std::fs::File::create(&stderr).unwrap())
-            .spawn()
-            .unwrap();
-        let mut line = String::new();
-        std::io::BufRead::read_line(
-            &mut std::io::BufReader::new(child.stdout.take().unwrap()),
-            &mut line,
-        )
-        .unwrap();
-        let port = line
-            .split("127.0.0.1:")
-            .nth(1)
-            .and_then(|r| r.split('/').next())
-            .and_then(|p| p.parse().ok())
-            .unwrap_or_else(|| panic!("no port in {line:?}"));
+        let (server, url) = common::browser::serve_logging(
+            Path::new(env!("CARGO_BIN_EXE_jawtrack")),
+            &[&s(&rig), "--capture", &s(&cap), "--tracks", &s(&poses)],
+            std::fs::File::create(&stderr).unwrap().into(),
+        );
+        let port = common::browser::port_of(&url);
         Mutex::new(ViewServer {
             _dir: dir,
-            child,
+            _server: server,
             port,
             stderr,
         })

@@ -7,7 +7,7 @@ mod common;
 use std::io::{Read, Write};
 use std::net::TcpStream;
 use std::path::{Path, PathBuf};
-use std::process::{Child, Command, Stdio};
+use std::process::Command;
 use std::sync::OnceLock;
 use std::time::{Duration, Instant};
 
@@ -53,42 +53,22 @@ fn fixture() -> &'static Fixture {
 // ---- the page's server ----
 
 struct Server {
-    child: Child,
+    child: common::browser::Killed,
     port: u16,
-}
-
-impl Drop for Server {
-    fn drop(&mut self) {
-        let _ = self.child.kill();
-        let _ = self.child.wait();
-    }
 }
 
 impl Server {
     fn start() -> Server {
         let f = fixture();
-        let mut child = Command::new(env!("CARGO_BIN_EXE_jawtrack"))
-            .args(["view", s(&f.rig), "--capture", s(&f.capture), "--port", "0"])
-            .stdout(Stdio::piped())
-            .spawn()
-            .unwrap();
-        let mut line = String::new();
-        std::io::BufRead::read_line(
-            &mut std::io::BufReader::new(child.stdout.take().unwrap()),
-            &mut line,
-        )
-        .unwrap();
-        let port = line
-            .split("127.0.0.1:")
-            .nth(1)
-            .and_then(|r| r.split('/').next())
-            .and_then(|p| p.parse().ok())
-            .unwrap_or_else(|| panic!("no port in {line:?}"));
-        Server { child, port }
+        let (child, url) = common::browser::serve(&[s(&f.rig), "--capture", s(&f.capture)]);
+        Server {
+            child,
+            port: common::browser::port_of(&url),
+        }
     }
 
     fn alive(&mut self) -> bool {
-        self.child.try_wait().unwrap().is_none()
+        self.child.alive()
     }
 
     /// Send `raw` as it is; the status code and body of the reply.

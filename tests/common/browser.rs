@@ -18,13 +18,26 @@ impl Drop for Killed {
     }
 }
 
+impl Killed {
+    /// Whether the process still runs.
+    pub fn alive(&mut self) -> bool {
+        self.0.try_wait().unwrap().is_none()
+    }
+}
+
 /// `jawtrack view` (the binary at `exe`) on a free port; its URL.
 pub fn serve_with(exe: &std::path::Path, args: &[&str]) -> (Killed, String) {
+    serve_logging(exe, args, Stdio::inherit())
+}
+
+/// [`serve_with`], its standard error sent to `stderr`.
+pub fn serve_logging(exe: &std::path::Path, args: &[&str], stderr: Stdio) -> (Killed, String) {
     let mut child = Command::new(exe)
         .arg("view")
         .args(args)
         .args(["--port", "0"])
         .stdout(Stdio::piped())
+        .stderr(stderr)
         .spawn()
         .unwrap();
     let mut line = String::new();
@@ -224,6 +237,15 @@ fn which(program: &str) -> String {
         .output()
         .unwrap();
     String::from_utf8_lossy(&out.stdout).trim().to_owned()
+}
+
+/// The port of a URL that [`serve_with`] printed.
+pub fn port_of(url: &str) -> u16 {
+    url.rsplit(':')
+        .next()
+        .and_then(|r| r.trim_end_matches('/').split('/').next())
+        .and_then(|p| p.parse().ok())
+        .unwrap_or_else(|| panic!("no port in {url:?}"))
 }
 
 /// [`serve_with`] for the jawtrack built with this test or benchmark.
