@@ -63,7 +63,7 @@ fn masks_are_used_as_seen_and_models_are_drawn_through_the_lens() {
     // The upper box placed near the left camera's top-left corner, where the lens moves its
     // corners by up to 9 pixels: its outline lies where the lens model projects its vertices.
     let pose = Pose::from_translation(Vector3::new(-70.0, 56.0, 0.0));
-    let labels = render_labels(&cam, &[(&c.upper(), &pose, 1, 1)]);
+    let labels = render_labels(&cam, &[(c.upper(), &pose, 1, 1)]);
     let (w, h) = (cam.width as usize, cam.height as usize);
     let lit: Vec<(f64, f64)> = (0..w * h)
         .filter(|&i| labels[i] == 1)

@@ -500,9 +500,8 @@ fn every_seed_of_the_corpus_reads() {
     }
     let seq = jawtrack::skin::format::FaceSequence::open(face_seed()).unwrap();
     jawtrack::skin::subject::Subject::load(&seq, "seed", &|| {}).unwrap();
-    for seed in 0..VIEW_SEEDS.len() {
+    for (seed, &(method, path, body)) in VIEW_SEEDS.iter().enumerate() {
         let port = view_server().lock().unwrap().port;
-        let (method, path, body) = VIEW_SEEDS[seed];
         let reply = exchange(port, &view_request(port, seed, body));
         assert!(
             reply.starts_with(b"HTTP/1.1 200"),

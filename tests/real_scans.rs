@@ -121,8 +121,8 @@ fn a_synthetic_capture_on_the_real_scans_loads_back() {
             render_labels(
                 cam,
                 &[
-                    (&capture.upper(), &poses.upper, 1, 2),
-                    (&capture.lower(), &poses.lower, 3, 4),
+                    (capture.upper(), &poses.upper, 1, 2),
+                    (capture.lower(), &poses.lower, 3, 4),
                 ],
             )
         };

@@ -378,8 +378,8 @@ fn masks_read_at_a_fraction_of_their_resolution_line_up_with_the_cameras() {
             let drawn = jawtrack::energy::raster::render_labels(
                 &cam,
                 &[
-                    (&half.upper(), &truth.upper, 1, 1),
-                    (&half.lower(), &truth.lower, 2, 2),
+                    (half.upper(), &truth.upper, 1, 1),
+                    (half.lower(), &truth.lower, 2, 2),
                 ],
             );
             drawn.iter().zip(&m.data).filter(|(a, b)| a != b).count()

@@ -96,8 +96,8 @@ pub fn capture(c: &Capture, pixels: Option<&[[f64; 3]]>) {
             hi[2] - lo[2]
         );
     };
-    describe("upper", &c.upper());
-    describe("lower", &c.lower());
+    describe("upper", c.upper());
+    describe("lower", c.lower());
     if let Some(m) = &c.mandible() {
         describe("mandible", m);
     }

@@ -127,7 +127,7 @@ impl FrameRecordJson {
             }
         }
         let apart = jaw.translation.norm();
-        if !(apart <= MAX_JAW_MM) {
+        if apart.is_nan() || apart > MAX_JAW_MM {
             return Err(Error::invalid(
                 path,
                 format!("frame {}.lower", self.frame),

@@ -84,7 +84,7 @@ pub const MAX_COORDINATE_MM: f32 = 1e6;
 fn check_coordinates(path: &Path, positions: &[[f32; 3]]) -> Result<()> {
     let Some(i) = positions
         .iter()
-        .position(|p| p.iter().any(|c| !(c.abs() <= MAX_COORDINATE_MM)))
+        .position(|p| p.iter().any(|c| c.is_nan() || c.abs() > MAX_COORDINATE_MM))
     else {
         return Ok(());
     };

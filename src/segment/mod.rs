@@ -177,8 +177,8 @@ impl<'c> Segmenter<'c> {
             let drawn = render_labels(
                 cam,
                 &[
-                    (&capture.upper(), &poses.upper, UPPER_BIT, UPPER_BIT),
-                    (&capture.lower(), &poses.lower, LOWER_BIT, LOWER_BIT),
+                    (capture.upper(), &poses.upper, UPPER_BIT, UPPER_BIT),
+                    (capture.lower(), &poses.lower, LOWER_BIT, LOWER_BIT),
                 ],
             );
             for (p, d) in prior.iter_mut().zip(drawn) {

@@ -81,8 +81,8 @@ pub fn picture(
     let classes = render_labels(
         &cam,
         &[
-            (&capture.upper(), &poses.upper, CLASS_BODY, CLASS_BOI),
-            (&capture.lower(), &poses.lower, lower_body, CLASS_BOI),
+            (capture.upper(), &poses.upper, CLASS_BODY, CLASS_BOI),
+            (capture.lower(), &poses.lower, lower_body, CLASS_BOI),
         ],
     );
     let (w, h) = (cam.width, cam.height);

@@ -269,8 +269,8 @@ pub fn track_frames(
     // covering the upper arch's pixels, which the contact penalty forbids (docs/tracking.md).
     // Which side of each arch the other is on comes from the poses tracking starts from.
     let prior = JawPrior::new(
-        &capture.upper(),
-        &capture.lower(),
+        capture.upper(),
+        capture.lower(),
         &state.start.jaw(),
         settings.jaw_prior_grid,
         settings.jaw_prior_fine_grid,
@@ -279,8 +279,8 @@ pub fn track_frames(
     );
     let contact = (settings.contact_weight > 0.0).then(|| {
         Contact::new(
-            &capture.upper(),
-            &capture.lower(),
+            capture.upper(),
+            capture.lower(),
             &state.start.jaw(),
             ContactSettings {
                 weight: settings.contact_weight,
@@ -293,7 +293,7 @@ pub fn track_frames(
         (per_arch && settings.jaw_manifold_weight > 0.0 && prior.fine.len() >= 4).then(|| {
             JawManifold::new(
                 &prior.fine,
-                &capture.lower(),
+                capture.lower(),
                 settings.jaw_manifold_weight,
                 settings.jaw_manifold_tolerance_mm,
             )

@@ -92,7 +92,7 @@ impl<'c> Session<'c> {
         let range = options.frames.clone().unwrap_or(all.clone());
         if range.start < all.start || range.end > all.end || range.start >= range.end {
             return Err(Error::invalid(
-                &capture.dir(),
+                capture.dir(),
                 "frames",
                 format!(
                     "{}..{} asked for, but the capture has frames {}..{}",
