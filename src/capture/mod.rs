@@ -4,6 +4,7 @@
 mod camera;
 pub mod json;
 pub mod masks;
+mod open;
 mod paths;
 pub use paths::{Folder, capture_reads, listed_file_inside, path_inside};
 
@@ -14,12 +15,12 @@ use nalgebra::Vector2;
 
 use crate::arch::{Arch, ArchPoses};
 use crate::error::{Error, Result, Shown};
-use crate::formats::{FramePoses, read_poses};
+use crate::formats::FramePoses;
 use crate::geometry::{Camera, Pose, fit_rigid, triangulate};
 use crate::io::{check_finite, read_json};
-use crate::mesh::{BoiSource, Mesh, Simplify};
+use crate::mesh::Mesh;
 pub use camera::{camera_from_json, read_camera};
-use json::{ArchInitJson, BoiJson, CaptureJson, InitJson};
+use json::{ArchInitJson, InitJson};
 pub use masks::{LOWER_BIT, LabelMask, MaskMode, UPPER_BIT};
 
 /// A camera of the capture with what was found of its masks.
@@ -211,224 +212,10 @@ impl Capture {
         Self::open_with(dir, OpenOptions::default())
     }
 
+    /// Read and validate the capture in `dir` (capture.json, cameras, meshes, the masks
+    /// present, init.json and ground truth).
     pub fn open_with(dir: &Path, options: OpenOptions) -> Result<Capture> {
-        let capture_path = dir.join("capture.json");
-        let (cj, unknown): (CaptureJson, _) =
-            crate::io::read_json_noting_unknown(&capture_path, "capture.json")?;
-        let notes = unknown
-            .iter()
-            .map(|field| {
-                format!(
-                    "{}: `{field}` is not a field of the capture format; ignored",
-                    capture_path.display()
-                )
-            })
-            .collect();
-        if cj.format != json::CAPTURE_FORMAT {
-            return Err(Error::invalid(
-                &capture_path,
-                "format",
-                format!(
-                    "expected \"{}\", found \"{}\"",
-                    json::CAPTURE_FORMAT,
-                    cj.format
-                ),
-            ));
-        }
-        if cj.cameras.is_empty() {
-            return Err(Error::invalid(
-                &capture_path,
-                "cameras",
-                "no cameras are named",
-            ));
-        }
-        for (i, name) in cj.cameras.iter().enumerate() {
-            if name.is_empty() || name.contains(['/', '\\']) || name == "." || name == ".." {
-                return Err(Error::invalid(
-                    &capture_path,
-                    format!("cameras[{i}]"),
-                    format!("`{name}` is not a valid camera name"),
-                ));
-            }
-            if cj.cameras[..i].contains(name) {
-                return Err(Error::invalid(
-                    &capture_path,
-                    format!("cameras[{i}]"),
-                    format!("camera `{name}` is named twice"),
-                ));
-            }
-        }
-        if cj.frames.count == 0 {
-            return Err(Error::invalid(
-                &capture_path,
-                "frames.count",
-                "must be at least 1",
-            ));
-        }
-        let mask_mode = match cj.masks.mode.as_str() {
-            "per-arch" => {
-                let label = |v: Option<i64>, default: u8, field: &str| -> Result<u8> {
-                    match v {
-                        None => Ok(default),
-                        Some(x) if (0..=255).contains(&x) => Ok(x as u8),
-                        Some(x) => Err(Error::invalid(
-                            &capture_path,
-                            field,
-                            format!("a mask label must be 0..255, found {x}"),
-                        )),
-                    }
-                };
-                let upper = label(cj.masks.upper, 1, "masks.upper")?;
-                let lower = label(cj.masks.lower, 2, "masks.lower")?;
-                if upper == lower {
-                    return Err(Error::invalid(
-                        &capture_path,
-                        "masks.lower",
-                        format!("the upper and lower labels are both {upper}"),
-                    ));
-                }
-                MaskMode::PerArch { upper, lower }
-            }
-            "combined" => MaskMode::Combined,
-            other => {
-                return Err(Error::invalid(
-                    &capture_path,
-                    "masks.mode",
-                    format!("expected \"per-arch\" or \"combined\", found \"{other}\""),
-                ));
-            }
-        };
-
-        let inside = |field: &str, rel: &str| {
-            if options.allow_outside {
-                Ok(dir.join(rel))
-            } else {
-                paths::path_inside(Folder::Capture, dir, &capture_path, field, rel)
-            }
-        };
-        let offsets = cj.frames.offsets.clone().unwrap_or_default();
-        for (name, &offset) in &offsets {
-            let field = format!("frames.offsets.{name}");
-            if !cj.cameras.contains(name) {
-                return Err(Error::invalid(
-                    &capture_path,
-                    field,
-                    "no camera of that name",
-                ));
-            }
-            if offset.abs() > 1_000_000 {
-                return Err(Error::invalid(
-                    &capture_path,
-                    field,
-                    format!("an offset of {offset} frames is beyond 1000000"),
-                ));
-            }
-        }
-        let mouth = mask_mode.mouth_label(cj.masks.mouth, &capture_path)?;
-        let mut cameras = Vec::with_capacity(cj.cameras.len());
-        let mask_dir = inside("masks.dir", &cj.masks.dir)?;
-        for (i, name) in cj.cameras.iter().enumerate() {
-            let camera_file = inside(&format!("cameras[{i}]"), &format!("cameras/{name}.json"))?;
-            let calibrated = read_camera(&camera_file, name)?;
-            let cam_masks = inside(
-                &format!("masks.dir ({name}/)"),
-                &format!("{}/{name}", cj.masks.dir),
-            )?;
-            let root = (!options.allow_outside).then_some(dir);
-            let (mask_size, files_present) = masks::scan_masks(&cam_masks, mask_mode, root)?;
-            let offset = offsets.get(name).copied().unwrap_or(0);
-            let frames_present = files_present
-                .into_iter()
-                .filter_map(|f| u32::try_from(f as i64 - offset).ok())
-                .collect();
-            let mask_size = mask_size
-                .map(|size| masks::reduced_size(size, options.mask_reduce, &cam_masks))
-                .transpose()?;
-            cameras.push(CaptureCamera {
-                calibrated,
-                mask_size,
-                frames_present,
-                offset,
-            });
-        }
-        let first = cj.frames.first;
-        let last = first as u64 + cj.frames.count as u64 - 1;
-        let last_present = cameras.iter().filter_map(|c| c.frames_present.last()).max();
-        match last_present {
-            _ if options.masks_to_come => {}
-            None => {
-                return Err(Error::Missing {
-                    path: mask_dir,
-                    what: "mask files (<camera>/<frame:06>.png)".into(),
-                });
-            }
-            Some(&lp) if last > lp as u64 => {
-                return Err(Error::invalid(
-                    &capture_path,
-                    "frames",
-                    format!(
-                        "frames {first}..={last} go beyond the last mask file present (frame {lp})"
-                    ),
-                ));
-            }
-            _ => {}
-        }
-
-        let (upper_boi, lower_boi) = match &cj.boi {
-            BoiJson::Group { group } => {
-                (BoiRef::Group(group.clone()), BoiRef::Group(group.clone()))
-            }
-            BoiJson::FaceLists { upper, lower } => (
-                BoiRef::List(inside("boi.upper", upper)?),
-                BoiRef::List(inside("boi.lower", lower)?),
-            ),
-        };
-        let load_mesh = |field: &str, rel: &str, boi: &BoiRef| -> Result<Mesh> {
-            let path = inside(field, rel)?;
-            let source = match boi {
-                BoiRef::Group(g) => BoiSource::Group(g),
-                BoiRef::List(p) => BoiSource::FaceList(p),
-            };
-            let mesh = Mesh::load(&path, source)?;
-            Ok(match options.max_triangles {
-                Some(n) => mesh.simplified(Simplify::MaxTriangles(n)),
-                None => mesh.simplified(Simplify::MaxErrorMm(options.simplify_mm)),
-            })
-        };
-        let upper = load_mesh("meshes.upper", &cj.meshes.upper, &upper_boi)?;
-        let lower = load_mesh("meshes.lower", &cj.meshes.lower, &lower_boi)?;
-        let mandible = cj
-            .meshes
-            .mandible
-            .as_ref()
-            .map(|rel| Mesh::load(&inside("meshes.mandible", rel)?, BoiSource::None))
-            .transpose()?;
-
-        let mut capture = Capture {
-            dir: dir.to_path_buf(),
-            cameras,
-            first_frame: first,
-            frame_count: cj.frames.count,
-            upper,
-            lower,
-            mandible,
-            mask_dir,
-            mask_mode,
-            mouth,
-            notes,
-            mask_reduce: options.mask_reduce.max(1),
-            init: None,
-            gt: None,
-        };
-        let init_path = paths::own_file(dir, "init.json", options.allow_outside)?;
-        if init_path.exists() {
-            capture.init = Some(capture.read_init(&init_path)?);
-        }
-        let gt_path = paths::own_file(dir, "gt/poses.json", options.allow_outside)?;
-        if gt_path.exists() {
-            capture.gt = Some(read_poses(&gt_path)?);
-        }
-        Ok(capture)
+        open::Opening::new(dir, options).open()
     }
 
     pub fn camera_names(&self) -> Vec<&str> {
@@ -646,9 +433,4 @@ impl Capture {
             lower: arch_init(Arch::Lower, &ij.lower)?,
         })
     }
-}
-
-enum BoiRef {
-    Group(String),
-    List(PathBuf),
 }

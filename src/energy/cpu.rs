@@ -158,7 +158,7 @@ impl CpuEnergy {
                 clusters: &self.clusters[a],
                 away: self.away[a],
             });
-            render(&self.scene, self.region, cam, arch, poses, other, skip, s);
+            render(&self.scene, self.region, cam, (arch, poses), other, skip, s);
             histogram::count(cam, &s.target, &prep.mask, arch, *prep.totals.get(arch))
         })
     }
@@ -187,13 +187,11 @@ struct Skip<'a> {
 /// `Scene::other_arch_class`) within the scored arch's footprint (grown to the other arch's
 /// in combined mode). The depth test makes this the same picture as drawing both in turn;
 /// with `skip`, body faces that cannot change the energy are left out.
-#[allow(clippy::too_many_arguments)]
 fn render(
     scene: &Scene,
     region: Region,
     cam: &Camera,
-    arch: Arch,
-    poses: &ArchPoses,
+    (arch, poses): (Arch, &ArchPoses),
     other: &Target,
     skip: Option<Skip>,
     s: &mut Scratch,

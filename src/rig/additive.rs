@@ -405,21 +405,9 @@ mod tests {
         let data: Vec<f64> = (0..l.n * l.dims)
             .map(|_| rng.random_range(-0.2..0.2))
             .collect();
-        let (_, g) = error_and_gradient(l, &theta, &data, 1e-2);
-        for i in 0..theta.len() {
-            let h = 1e-6;
-            let (mut p, mut m) = (theta.clone(), theta.clone());
-            p[i] += h;
-            m[i] -= h;
-            let fd = (error_and_gradient(l, &p, &data, 1e-2).0
-                - error_and_gradient(l, &m, &data, 1e-2).0)
-                / (2.0 * h);
-            assert!(
-                (fd - g[i]).abs() <= 1e-6 * (1.0 + fd.abs()),
-                "{i}: {} vs {fd}",
-                g[i]
-            );
-        }
+        crate::rig::assert_gradient_matches_differences(&theta, |t| {
+            error_and_gradient(l, t, &data, 1e-2)
+        });
     }
 
     #[test]

@@ -302,21 +302,9 @@ mod tests {
         let data: Vec<f64> = (0..c.base.n * c.base.dims)
             .map(|_| rng.random_range(-0.2..0.2))
             .collect();
-        let (_, g) = c.error_and_gradient(&theta, &data, 1e-2);
-        for i in 0..theta.len() {
-            let h = 1e-6;
-            let (mut p, mut m) = (theta.clone(), theta.clone());
-            p[i] += h;
-            m[i] -= h;
-            let fd = (c.error_and_gradient(&p, &data, 1e-2).0
-                - c.error_and_gradient(&m, &data, 1e-2).0)
-                / (2.0 * h);
-            assert!(
-                (fd - g[i]).abs() <= 1e-6 * (1.0 + fd.abs()),
-                "{i}: {} vs {fd}",
-                g[i]
-            );
-        }
+        crate::rig::assert_gradient_matches_differences(&theta, |t| {
+            c.error_and_gradient(t, &data, 1e-2)
+        });
     }
 
     #[test]

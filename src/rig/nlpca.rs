@@ -416,22 +416,9 @@ mod tests {
         let data: Vec<f64> = curve(23).into_iter().flatten().map(|v| v * 0.2).collect();
         let w = initial_weights(s, 7, None);
         let balance = [1.0, 3.0];
-        let (_, g) = error_and_gradient(s, &w, &data, &balance, 1e-3);
-        let h = 1e-6;
-        for i in 0..w.len() {
-            let mut wp = w.clone();
-            let mut wm = w.clone();
-            wp[i] += h;
-            wm[i] -= h;
-            let fd = (error_and_gradient(s, &wp, &data, &balance, 1e-3).0
-                - error_and_gradient(s, &wm, &data, &balance, 1e-3).0)
-                / (2.0 * h);
-            assert!(
-                (fd - g[i]).abs() <= 1e-6 * (1.0 + fd.abs()),
-                "weight {i}: backprop {} vs finite difference {fd}",
-                g[i]
-            );
-        }
+        crate::rig::assert_gradient_matches_differences(&w, |w| {
+            error_and_gradient(s, w, &data, &balance, 1e-3)
+        });
     }
 
     #[test]

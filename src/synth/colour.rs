@@ -38,7 +38,6 @@ const SKIN: [f64; 3] = [212.0, 164.0, 138.0];
 /// How tall the lips are beyond the opening (mm at the subject).
 const LIP_HEIGHT_MM: f64 = 9.0;
 
-#[allow(clippy::too_many_arguments)]
 pub fn render_colour(
     cam: &Camera,
     meshes: [&Mesh; 2],

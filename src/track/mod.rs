@@ -5,6 +5,7 @@
 //! overlays (`overlay`).
 
 pub mod contact;
+pub mod floor;
 pub mod manifold;
 pub mod output;
 pub mod overlay;
@@ -16,7 +17,7 @@ pub mod sequence;
 pub mod session;
 pub mod state;
 
-pub use search::{Found, SearchSettings, search};
+pub use search::{ArchSearch, Found, SearchSettings, search};
 pub use sequence::{
     FrameResult, LabelledSettings, MaskSource, Status, TrackSettings, track_frames,
 };

@@ -192,30 +192,36 @@ pub const RADIUS_MM: f64 = 30.0;
 
 const GOLDEN: f64 = 0.618_033_988_749_894_9;
 
-/// Search the pose of `arch` from `start` (the other arch held at its pose in `context`).
-/// `centre` is the arch's centre in its model frame; `penalties` are added to the objective
-/// ([`Penalties::NONE`] for the energy alone); `seed` makes the sampling repeatable.
-#[allow(clippy::too_many_arguments)]
-pub fn search(
-    engine: &dyn EnergyEngine,
-    arch: Arch,
-    context: &ArchPoses,
-    start: Pose,
-    centre: &Vector3<f64>,
-    penalties: &Penalties,
-    s: &SearchSettings,
-    seed: u64,
-) -> Result<Found> {
+/// One arch's search: which arch, from where, and what else its objective holds.
+#[derive(Debug, Clone, Copy)]
+pub struct ArchSearch<'a> {
+    pub arch: Arch,
+    /// Both arches' poses: the search starts from `arch`'s and holds the other at its own.
+    pub from: ArchPoses,
+    /// The arch's centre in its model frame: rotations turn about it.
+    pub centre: &'a Vector3<f64>,
+    /// Added to the objective ([`Penalties::NONE`] for the energy alone).
+    pub penalties: &'a Penalties,
+    pub settings: &'a SearchSettings,
+    /// Makes the sampling repeatable.
+    pub seed: u64,
+}
+
+/// Search the pose of `q.arch` from `q.from`.
+pub fn search(engine: &dyn EnergyEngine, q: &ArchSearch) -> Result<Found> {
+    let (arch, s) = (q.arch, q.settings);
+    let start = *q.from.get(arch);
     let mut obj = Objective {
         engine,
         arch,
-        context: *context,
+        context: q.from,
         start,
-        centre: start.transform_point(centre),
+        centre: start.transform_point(q.centre),
         weights: s.weights(),
-        penalties,
+        penalties: q.penalties,
         evaluations: 0,
     };
+    let seed = q.seed;
     let mut best = [0.0; 6];
     let mut best_e = obj.totals(&[best])?[0];
     let mut rng = rand_chacha::ChaCha8Rng::seed_from_u64(seed);

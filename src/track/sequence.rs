@@ -12,7 +12,7 @@ use super::contact::{Contact, ContactSettings};
 use super::manifold::JawManifold;
 use super::penalties::Penalties;
 use super::prior::JawPrior;
-use super::search::{RADIUS_MM, SearchSettings, search};
+use super::search::{ArchSearch, RADIUS_MM, SearchSettings, search};
 use super::state::{TrackState, as_written};
 use crate::arch::{Arch, ArchPoses};
 use crate::capture::{Capture, FrameMasks, MaskMode};
@@ -253,7 +253,6 @@ pub fn starts(state: &TrackState) -> Vec<ArchPoses> {
 /// Track `frames` (in order), starting from `state`, with the masks of the capture's files
 /// or, given a `source`, its; `on_frame` receives every frame with its masks (for overlays,
 /// without reading them again).
-#[allow(clippy::too_many_arguments)]
 pub fn track_frames(
     capture: &Capture,
     engine: &mut dyn EnergyEngine,
@@ -263,7 +262,7 @@ pub fn track_frames(
     source: Option<&mut dyn MaskSource>,
     on_frame: &mut dyn FnMut(&FrameResult, &FrameMasks) -> Result<()>,
 ) -> Result<()> {
-    let settings = &settings.for_capture(capture);
+    let settings = settings.for_capture(capture);
     let centres = [centre(capture, Arch::Upper), centre(capture, Arch::Lower)];
     // The prior serves both mask modes: with combined masks a lower-arch start could win by
     // covering the upper arch's pixels, which the contact penalty forbids (docs/tracking.md).
@@ -298,11 +297,15 @@ pub fn track_frames(
                 settings.jaw_manifold_tolerance_mm,
             )
         });
-    let penalties = Penalties { contact, manifold };
+    let run = Run {
+        capture,
+        settings,
+        centres,
+        prior,
+        penalties: Penalties { contact, manifold },
+    };
     let mut step = |frame: u32, masks: FrameMasks, started: Instant, state: &mut TrackState| {
-        let result = track_frame(
-            capture, engine, settings, &centres, &prior, &penalties, frame, &masks, state,
-        )?;
+        let result = track_frame(&run, engine, frame, &masks, state)?;
         let result = FrameResult {
             seconds: started.elapsed().as_secs_f64(),
             ..result
@@ -334,18 +337,25 @@ pub fn track_frames(
     })
 }
 
-#[allow(clippy::too_many_arguments)]
+/// What stays the same over a run: the capture, its settings, the arches' centres (in their
+/// model frames), the jaw prior and the penalties.
+struct Run<'a> {
+    capture: &'a Capture,
+    settings: TrackSettings,
+    centres: [Vector3<f64>; 2],
+    prior: JawPrior,
+    penalties: Penalties,
+}
+
 fn track_frame(
-    capture: &Capture,
+    run: &Run,
     engine: &mut dyn EnergyEngine,
-    settings: &TrackSettings,
-    centres: &[Vector3<f64>; 2],
-    prior: &JawPrior,
-    penalties: &Penalties,
     frame: u32,
     masks: &FrameMasks,
     state: &mut TrackState,
 ) -> Result<FrameResult> {
+    let (capture, settings, prior, penalties) =
+        (run.capture, &run.settings, &run.prior, &run.penalties);
     if masks.masks.iter().all(Option::is_none) {
         // No camera saw anything: keep the last good pose.
         state.no_data();
@@ -411,13 +421,14 @@ fn track_frame(
                     | (arch == Arch::Lower) as u64;
                 let found = search(
                     &*engine,
-                    arch,
-                    start,
-                    *start.get(arch),
-                    &centres[arch.index()],
-                    penalties,
-                    &settings.search,
-                    seed,
+                    &ArchSearch {
+                        arch,
+                        from: *start,
+                        centre: &run.centres[arch.index()],
+                        penalties: &run.penalties,
+                        settings: &settings.search,
+                        seed,
+                    },
                 )?;
                 evaluations += found.evaluations;
                 if best.is_none_or(|(e, _)| found.objective < e) {

@@ -3,11 +3,12 @@
 use std::path::PathBuf;
 
 use anyhow::Context;
-use jawtrack::arch::{Arch, ArchPoses};
+use jawtrack::arch::ArchPoses;
 use jawtrack::capture::Capture;
-use jawtrack::energy::{EnergyEngine, Region, Scene, Weights};
+use jawtrack::energy::{Region, Scene};
 use jawtrack::synth::{SynthOptions, generate};
 use jawtrack::track::SessionOptions;
+use jawtrack::track::floor::{FloorCheck, FloorSummary, FloorTally};
 
 use crate::cli::args::{EnergyArg, JointArg, MaskKindArg, PresetArg, name_of};
 
@@ -81,79 +82,11 @@ struct TrackRow {
     masks: String,
     /// Whether the masks' mouth label was read (the capture has one).
     mouth_label: bool,
-    frames: usize,
-    seconds_per_frame: f64,
-    evaluations_per_frame: f64,
-    /// Jaw and per-arch mean vertex error (mm): median, 95th percentile.
-    jaw_error_mm: [f64; 2],
-    upper_error_mm: [f64; 2],
-    lower_error_mm: [f64; 2],
-    /// The energy's floor: the error of E's minimum found by a long, fine search from the
-    /// truth (jaw, median and 95th percentile).
-    jaw_floor_mm: [f64; 2],
-    /// Median over frames of tracked error / floor (jaw mean vertex error; floors under
-    /// 0.01 mm count as 0.01 mm).
-    median_ratio_to_floor: f64,
-    /// Share of frames whose tracked poses have a higher objective (both arches) than the
-    /// floor's: there the search stopped short; elsewhere the energy cannot tell them apart.
-    search_shortfall: f64,
-    area_error_percent_median: [f64; 2],
-}
-
-/// The search's objective (E plus the terms of our own, at `weights`) of both arches.
-fn objective_sum(
-    engine: &dyn EnergyEngine,
-    poses: &ArchPoses,
-    weights: &Weights,
-) -> anyhow::Result<f64> {
-    let mut sum = 0.0;
-    for arch in Arch::BOTH {
-        sum += engine.evaluate(arch, std::slice::from_ref(poses))?[0].objective(weights);
-    }
-    Ok(sum)
-}
-
-/// The floor: the objective (at the tracking's weights, without penalties) minimised by a
-/// long, fine search from the true poses (upper, then lower).
-fn floor_poses(
-    capture: &Capture,
-    engine: &dyn EnergyEngine,
-    truth: &ArchPoses,
-    frame: u32,
-    weights: &Weights,
-) -> anyhow::Result<ArchPoses> {
-    use jawtrack::track::SearchSettings;
-    let fine = SearchSettings {
-        max_rounds: 40,
-        min_gain: 0.1,
-        sample_rounds: 4,
-        samples: 64,
-        scales: vec![1.0, 0.25, 0.06],
-        lambda: weights.lambda,
-        cross_weight: weights.cross,
-        mouth_weight: weights.mouth,
-        ..SearchSettings::default()
-    };
-    let mut poses = *truth;
-    for arch in Arch::BOTH {
-        let centre = jawtrack::track::sequence::centre(capture, arch);
-        let found = jawtrack::track::search(
-            engine,
-            arch,
-            &poses,
-            *poses.get(arch),
-            &centre,
-            &jawtrack::track::penalties::Penalties::NONE,
-            &fine,
-            frame as u64,
-        )?;
-        poses = poses.with(arch, found.pose);
-    }
-    Ok(poses)
+    #[serde(flatten)]
+    summary: FloorSummary,
 }
 
 pub fn track(a: TrackArgs) -> anyhow::Result<()> {
-    use jawtrack::track::score::Stats;
     let tmp = tempfile::tempdir()?;
     let settings = crate::cli::args::track_settings(a.settings.as_deref(), a.energy)?;
     let weights = settings.search.weights();
@@ -164,14 +97,7 @@ pub fn track(a: TrackArgs) -> anyhow::Result<()> {
         .flat_map(|p| a.mouth.iter().map(move |m| (p, *m)))
     {
         let mut labelled = false;
-        let mut jaw = Vec::new();
-        let mut upper = Vec::new();
-        let mut lower = Vec::new();
-        let mut floor = Vec::new();
-        let mut ratio = Vec::new();
-        let mut area = [Vec::new(), Vec::new()];
-        let (mut seconds, mut evaluations, mut frames) = (0.0, 0usize, 0usize);
-        let mut shortfall = 0usize;
+        let mut tally = FloorTally::default();
         for &seed in &a.seeds {
             let dir = tmp.path().join(format!("{}-{seed}", name_of(preset)));
             let opts = SynthOptions {
@@ -205,9 +131,9 @@ pub fn track(a: TrackArgs) -> anyhow::Result<()> {
                 ..SessionOptions::new(&out)
             };
             let summary = crate::cli::run::track(&capture, options)?;
-            seconds += summary.seconds;
-            evaluations += summary.evaluations;
-            frames += summary.tracked_now;
+            tally.seconds += summary.seconds;
+            tally.evaluations += summary.evaluations;
+            tally.frames += summary.tracked_now;
             let report = jawtrack::track::score_records(&capture, &out, &summary.records)?
                 .context("ground truth")?;
             let opened = jawtrack::energy::open_engine(
@@ -216,7 +142,6 @@ pub fn track(a: TrackArgs) -> anyhow::Result<()> {
                 a.engine.region.map_or(Region::Relevant, Into::into),
             )?;
             let mut engine = opened.engine;
-            let lower_metric = jawtrack::anatomy::MeshMetric::new(capture.lower());
             let tracked: std::collections::HashMap<u32, ArchPoses> = summary
                 .records
                 .iter()
@@ -228,28 +153,21 @@ pub fn track(a: TrackArgs) -> anyhow::Result<()> {
                 if masks.masks.iter().all(Option::is_none) {
                     continue;
                 }
-                upper.push(err[0]);
-                lower.push(err[1]);
-                jaw.push(err[2]);
                 if a.no_floor {
+                    tally.frame(*err, None);
                     continue;
                 }
                 engine.set_frame(&masks)?;
-                let f = floor_poses(&capture, engine.as_ref(), &truth, *frame, &weights)?;
-                let t = tracked[frame];
-                let (et, ef) = (
-                    objective_sum(engine.as_ref(), &t, &weights)?,
-                    objective_sum(engine.as_ref(), &f, &weights)?,
-                );
-                if et > ef + 0.5 {
-                    shortfall += 1;
-                }
-                let (fj, tj) = (f.jaw(), truth.jaw());
-                let floor_jaw = lower_metric.mean_distance(&fj, &tj);
-                floor.push(floor_jaw);
-                ratio.push(err[2] / floor_jaw.max(0.01));
+                let f = FloorCheck::of(
+                    &capture,
+                    engine.as_ref(),
+                    *frame,
+                    (&truth, &tracked[frame]),
+                    &weights,
+                )?;
+                tally.frame(*err, Some(f));
                 eprintln!(
-                    "{} {} seed {seed} frame {frame}: jaw {:.3} mm, floor {:.3} mm; E tracked {et:.0}, at the floor {ef:.0}",
+                    "{} {} seed {seed} frame {frame}: jaw {:.3} mm, floor {:.3} mm; E tracked {:.0}, at the floor {:.0}",
                     name_of(preset),
                     if capture.mouth().is_some() {
                         "labelled"
@@ -257,32 +175,18 @@ pub fn track(a: TrackArgs) -> anyhow::Result<()> {
                         "unlabelled"
                     },
                     err[2],
-                    floor_jaw
+                    f.jaw_mm,
+                    f.tracked,
+                    f.floor
                 );
             }
-            for (k, s) in report.area_error_percent.iter().enumerate() {
-                area[k].push(s.median);
-            }
+            tally.capture_area_errors(report.area_error_percent.each_ref().map(|s| s.median));
         }
-        let two = |v: &[f64]| {
-            let s = Stats::of(v);
-            [s.median, s.p95]
-        };
-        let skipped = |v: f64| if a.no_floor { f64::NAN } else { v };
         rows.push(TrackRow {
             preset: name_of(preset),
             masks: name_of(&a.masks),
             mouth_label: labelled,
-            frames,
-            seconds_per_frame: seconds / frames.max(1) as f64,
-            evaluations_per_frame: evaluations as f64 / frames.max(1) as f64,
-            jaw_error_mm: two(&jaw),
-            upper_error_mm: two(&upper),
-            lower_error_mm: two(&lower),
-            jaw_floor_mm: two(&floor).map(skipped),
-            median_ratio_to_floor: skipped(Stats::of(&ratio).median),
-            search_shortfall: skipped(shortfall as f64 / jaw.len().max(1) as f64),
-            area_error_percent_median: [Stats::of(&area[0]).median, Stats::of(&area[1]).median],
+            summary: tally.summary(),
         });
     }
     if a.json {
@@ -307,12 +211,13 @@ pub fn track(a: TrackArgs) -> anyhow::Result<()> {
             "shortfall",
             "area err %"
         );
-        for r in &rows {
+        for row in &rows {
+            let r = &row.summary;
             println!(
                 "{:<10} {:<8} {:<5} {:>6} {:>8.2} {:>7.0} {:>6.3}/{:<6.3} {:>6.3}/{:<6.3} {:>6.3}/{:<6.3} {:>6.3}/{:<6.3} {:>11.2} {:>9.2} {:>6.2}/{:<6.2}",
-                r.preset,
-                r.masks,
-                if r.mouth_label { "yes" } else { "no" },
+                row.preset,
+                row.masks,
+                if row.mouth_label { "yes" } else { "no" },
                 r.frames,
                 r.seconds_per_frame,
                 r.evaluations_per_frame,
