@@ -2,51 +2,28 @@ use std::path::PathBuf;
 
 use anyhow::Context;
 use jawtrack::capture::Capture;
-use jawtrack::energy::Region;
 use jawtrack::segment::{SegmentSettings, Segmenter, prepare, score::score_masks};
-use jawtrack::track::{Session, SessionOptions, score_records};
+use jawtrack::track::{Session, score_records};
 
-use super::args::{EnergyArg, EngineArgs, LoadArgs, parse_frames, read_settings, track_settings};
+use super::args::read_settings;
 
 #[derive(clap::Args)]
 pub struct Args {
-    /// The capture folder, with images/<camera>/ (from `jawtrack import video`), init.json
-    /// and capture.json's `masks` block (the values the masks are written with).
-    pub capture: PathBuf,
-    /// Where to write tracks.json (the masks go to the capture's masks folder).
-    #[arg(short, long)]
-    pub output: PathBuf,
-    /// Frames to do: `A..B` (B excluded) or `A..=B`; default all.
-    #[arg(long)]
-    pub frames: Option<String>,
+    /// As for `track`; the capture holds images/<camera>/ (from `jawtrack import video`),
+    /// init.json and capture.json's `masks` block (the values the masks are written with),
+    /// and the masks go to its masks folder. Masks already there are never replaced without
+    /// --force.
     #[command(flatten)]
-    pub engine: EngineArgs,
-    /// Replace masks already in the masks folder (they may be corrections made by hand: by
-    /// default they are never overwritten) and an existing tracks.json.
-    #[arg(long)]
-    pub force: bool,
-    /// Continue an interrupted run after its last complete frame (the colour models are
-    /// learned again there).
-    #[arg(long)]
-    pub resume: bool,
-    /// Write the paper's overlay pictures per camera and frame into this folder.
-    #[arg(long)]
-    pub overlays: Option<PathBuf>,
-    #[command(flatten)]
-    pub load: LoadArgs,
-    /// Tracking settings as JSON (as for `track`).
-    #[arg(long)]
-    pub settings: Option<PathBuf>,
+    pub run: super::track::RunArgs,
     /// Segmentation settings as JSON (the fields of `SegmentSettings`, docs/footage.md): a
     /// file, or the JSON itself when it starts with `{`.
     #[arg(long)]
     pub segment_settings: Option<PathBuf>,
-    #[arg(long, value_enum, default_value_t = EnergyArg::Full)]
-    pub energy: EnergyArg,
 }
 
-pub fn run(a: Args) -> anyhow::Result<()> {
-    let segment_settings = match &a.segment_settings {
+pub fn run(args: Args) -> anyhow::Result<()> {
+    let a = &args.run;
+    let segment_settings = match &args.segment_settings {
         None => SegmentSettings::default(),
         Some(arg) => {
             let (s, source): (SegmentSettings, _) = read_settings(arg, "segmentation settings")?;
@@ -61,11 +38,6 @@ pub fn run(a: Args) -> anyhow::Result<()> {
     let mut capture = Capture::open_with(&a.capture, options)
         .with_context(|| format!("invalid capture {}", a.capture.display()))?;
     super::report::notes(&capture);
-    let frames = a
-        .frames
-        .as_deref()
-        .map(|s| parse_frames(s, &capture))
-        .transpose()?;
     let existing = capture
         .cameras()
         .iter()
@@ -85,16 +57,7 @@ pub fn run(a: Args) -> anyhow::Result<()> {
         );
     }
     let sizes = prepare(&mut capture)?;
-    let track_options = SessionOptions {
-        frames,
-        backend: a.engine.backend.into(),
-        region: a.engine.region.map_or(Region::Relevant, Into::into),
-        overlays: a.overlays,
-        resume: a.resume,
-        force: a.force,
-        settings: track_settings(a.settings.as_deref(), a.energy)?,
-        ..SessionOptions::new(&a.output)
-    };
+    let track_options = a.session_options(&capture)?;
     let session = Session::open(&capture, track_options)?;
     eprintln!("energy backend: {}", session.backend());
     let todo = session.todo();

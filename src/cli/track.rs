@@ -7,8 +7,10 @@ use jawtrack::track::{SessionOptions, score_records};
 
 use super::args::{EnergyArg, EngineArgs, LoadArgs, parse_frames, track_settings};
 
+/// What `track` and `segment` share: the capture, the output, the frames, the engine, the
+/// settings, and how a run that exists is continued or started over.
 #[derive(clap::Args)]
-pub struct Args {
+pub struct RunArgs {
     /// The capture folder.
     pub capture: PathBuf,
     /// Where to write tracks.json.
@@ -26,7 +28,8 @@ pub struct Args {
     /// Continue an interrupted run after its last complete frame.
     #[arg(long)]
     pub resume: bool,
-    /// Start over when the output exists.
+    /// Start over when the output exists (`segment`: also make the masks already in the masks
+    /// folder again, which may be corrections made by hand).
     #[arg(long)]
     pub force: bool,
     #[command(flatten)]
@@ -41,24 +44,37 @@ pub struct Args {
     pub energy: EnergyArg,
 }
 
-pub fn run(a: Args) -> anyhow::Result<()> {
+impl RunArgs {
+    /// The session these arguments ask for on `capture`.
+    pub fn session_options(&self, capture: &Capture) -> anyhow::Result<SessionOptions> {
+        Ok(SessionOptions {
+            frames: self
+                .frames
+                .as_deref()
+                .map(|s| parse_frames(s, capture))
+                .transpose()?,
+            backend: self.engine.backend.into(),
+            region: self.engine.region.map_or(Region::Relevant, Into::into),
+            overlays: self.overlays.clone(),
+            resume: self.resume,
+            force: self.force,
+            settings: track_settings(self.settings.as_deref(), self.energy)?,
+            ..SessionOptions::new(&self.output)
+        })
+    }
+}
+
+#[derive(clap::Args)]
+pub struct Args {
+    #[command(flatten)]
+    pub run: RunArgs,
+}
+
+pub fn run(Args { run: a }: Args) -> anyhow::Result<()> {
     let capture = Capture::open_with(&a.capture, a.load.open_options())
         .with_context(|| format!("invalid capture {}", a.capture.display()))?;
     super::report::notes(&capture);
-    let options = SessionOptions {
-        frames: a
-            .frames
-            .as_deref()
-            .map(|s| parse_frames(s, &capture))
-            .transpose()?,
-        backend: a.engine.backend.into(),
-        region: a.engine.region.map_or(Region::Relevant, Into::into),
-        overlays: a.overlays,
-        resume: a.resume,
-        force: a.force,
-        settings: track_settings(a.settings.as_deref(), a.energy)?,
-        ..SessionOptions::new(&a.output)
-    };
+    let options = a.session_options(&capture)?;
     let summary = super::run::track(&capture, options)?;
     super::report::track_summary(&a.output, &summary);
     if let Some(report) = score_records(&capture, &a.output, &summary.records)? {

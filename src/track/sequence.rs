@@ -337,6 +337,50 @@ pub fn track_frames(
     })
 }
 
+/// The first pass's starts for `arch` (the other arch at `poses`): each of the frame's starts,
+/// and for the lower arch the jaw prior's candidates placed on the upper arch as just found.
+fn first_pass_options(
+    prior: &JawPrior,
+    starts: &[ArchPoses],
+    poses: &ArchPoses,
+    arch: Arch,
+) -> Vec<ArchPoses> {
+    let mut options: Vec<ArchPoses> = starts
+        .iter()
+        .map(|s| poses.with(arch, *s.get(arch)))
+        .collect();
+    if arch == Arch::Lower {
+        let jaws: Vec<Pose> = starts.iter().map(ArchPoses::jaw).collect();
+        options.extend(
+            prior
+                .candidates(&jaws)
+                .iter()
+                .map(|j| poses.with(arch, poses.upper.compose(j))),
+        );
+    }
+    options
+}
+
+/// `ok`, or `low-confidence` when the frame's worst area error is above the settings' bound
+/// or jumps over the recent typical one.
+fn confidence(settings: &TrackSettings, state: &TrackState, worst_area_error: f64) -> Status {
+    let mut recent: Vec<f64> = state.recent_area_errors.iter().copied().collect();
+    recent.sort_by(f64::total_cmp);
+    let typical = recent.get(recent.len() / 2).copied();
+    // A sudden jump over the recent typical area error; the floor keeps clean data, whose
+    // area error is near zero, from tripping it.
+    let jump = typical.is_some_and(|m| {
+        recent.len() >= 3
+            && worst_area_error
+                > (settings.low_confidence_ratio * m).max(settings.low_confidence_floor)
+    });
+    if worst_area_error > settings.low_confidence_area_error || jump {
+        Status::LowConfidence
+    } else {
+        Status::Ok
+    }
+}
+
 /// What stays the same over a run: the capture, its settings, the arches' centres (in their
 /// model frames), the jaw prior and the penalties.
 struct Run<'a> {
@@ -385,22 +429,11 @@ fn track_frame(
         for arch in Arch::BOTH {
             // The first pass picks the starts that fit this frame best (the jaw prior placed
             // on the upper arch as just found); later passes go on from where the last ended.
-            let mut options: Vec<ArchPoses> = vec![poses];
-            if pass == 0 {
-                options = starts
-                    .iter()
-                    .map(|s| poses.with(arch, *s.get(arch)))
-                    .collect();
-                if arch == Arch::Lower {
-                    let jaws: Vec<Pose> = starts.iter().map(ArchPoses::jaw).collect();
-                    options.extend(
-                        prior
-                            .candidates(&jaws)
-                            .iter()
-                            .map(|j| poses.with(arch, poses.upper.compose(j))),
-                    );
-                }
-            }
+            let options = if pass == 0 {
+                first_pass_options(prior, &starts, &poses, arch)
+            } else {
+                vec![poses]
+            };
             let chosen = if options.len() > 1 {
                 let e = engine.evaluate(arch, &options)?;
                 evaluations += options.len();
@@ -448,22 +481,7 @@ fn track_frame(
     let lower = engine.evaluate(Arch::Lower, &[poses])?.remove(0);
     evaluations += 2;
     let worst_area_error = upper.area_error().max(lower.area_error());
-    let mut recent: Vec<f64> = state.recent_area_errors.iter().copied().collect();
-    recent.sort_by(f64::total_cmp);
-    let typical = recent.get(recent.len() / 2).copied();
-    // A sudden jump over the recent typical area error; the floor keeps clean data, whose
-    // area error is near zero, from tripping it.
-    let jump = typical.is_some_and(|m| {
-        recent.len() >= 3
-            && worst_area_error
-                > (settings.low_confidence_ratio * m).max(settings.low_confidence_floor)
-    });
-    let poor = worst_area_error > settings.low_confidence_area_error || jump;
-    let status = if poor {
-        Status::LowConfidence
-    } else {
-        Status::Ok
-    };
+    let status = confidence(settings, state, worst_area_error);
     state.advance(
         status,
         as_written(&poses),
