@@ -5,7 +5,7 @@ use std::path::Path;
 use super::json::CameraJson;
 use crate::error::{Error, Result, Shown};
 use crate::formats::PoseJson;
-use crate::geometry::{Camera, Distortion};
+use crate::geometry::{Camera, Distortion, Pose};
 use crate::io::{check_finite, read_json};
 
 /// Read a cameras/<name>.json file and validate every field.
@@ -26,6 +26,25 @@ pub const MAX_DISTORTION: f64 = 1e4;
 
 /// Validate a camera document (`path` names it in errors) and build the camera.
 pub fn camera_from_json(cj: &CameraJson, path: &Path, name: &str) -> Result<Camera> {
+    check_size(cj, path)?;
+    check_intrinsics(cj, path)?;
+    let distortion = read_distortion(cj, path)?;
+    let pose = read_pose(cj, path)?;
+    Ok(Camera {
+        name: name.to_string(),
+        width: cj.width as u32,
+        height: cj.height as u32,
+        fx: cj.fx,
+        fy: cj.fy,
+        cx: cj.cx,
+        cy: cj.cy,
+        distortion,
+        camera_from_world: pose,
+    })
+}
+
+/// Refuses an image side below `MIN_SIDE` or beyond 65536 pixels.
+fn check_size(cj: &CameraJson, path: &Path) -> Result<()> {
     if cj.width < MIN_SIDE || cj.height < MIN_SIDE || cj.width > 1 << 16 || cj.height > 1 << 16 {
         return Err(Error::invalid(
             path,
@@ -36,37 +55,17 @@ pub fn camera_from_json(cj: &CameraJson, path: &Path, name: &str) -> Result<Came
             ),
         ));
     }
+    Ok(())
+}
+
+/// Refuses intrinsics that are not finite, focal lengths out of range and a principal point
+/// far off the image.
+fn check_intrinsics(cj: &CameraJson, path: &Path) -> Result<()> {
     for (field, v) in [("fx", cj.fx), ("fy", cj.fy), ("cx", cj.cx), ("cy", cj.cy)] {
         check_finite(path, field, &[v])?;
     }
     for (field, v) in [("fx", cj.fx), ("fy", cj.fy)] {
-        if v <= 0.0 {
-            return Err(Error::invalid(
-                path,
-                field,
-                format!("the focal length must be positive, found {}", Shown(v)),
-            ));
-        }
-        if v < MIN_FOCAL_PX {
-            return Err(Error::invalid(
-                path,
-                field,
-                format!(
-                    "a focal length of {} px is below {MIN_FOCAL_PX} px: not a camera",
-                    Shown(v)
-                ),
-            ));
-        }
-        if v > MAX_FOCAL_PX {
-            return Err(Error::invalid(
-                path,
-                field,
-                format!(
-                    "a focal length of {} px is beyond {MAX_FOCAL_PX} px: not a camera",
-                    Shown(v)
-                ),
-            ));
-        }
+        check_focal(path, field, v)?;
     }
     for (field, v, side) in [("cx", cj.cx, cj.width), ("cy", cj.cy, cj.height)] {
         if v.abs() > 10.0 * side as f64 {
@@ -80,21 +79,63 @@ pub fn camera_from_json(cj: &CameraJson, path: &Path, name: &str) -> Result<Came
             ));
         }
     }
-    let fisheye = match cj.lens.as_deref() {
-        None | Some("opencv") => false,
-        Some("fisheye") => true,
-        Some(other) => {
-            return Err(Error::invalid(
-                path,
-                "lens",
-                format!(
-                    "`{}` is not a lens model: use \"opencv\" or \"fisheye\"",
-                    crate::io::read::quote(other)
-                ),
-            ));
-        }
-    };
-    let distortion = match &cj.distortion {
+    Ok(())
+}
+
+/// Refuses a focal length (`field`, pixels) that is not positive or not between
+/// `MIN_FOCAL_PX` and `MAX_FOCAL_PX`.
+fn check_focal(path: &Path, field: &str, v: f64) -> Result<()> {
+    if v <= 0.0 {
+        return Err(Error::invalid(
+            path,
+            field,
+            format!("the focal length must be positive, found {}", Shown(v)),
+        ));
+    }
+    if v < MIN_FOCAL_PX {
+        return Err(Error::invalid(
+            path,
+            field,
+            format!(
+                "a focal length of {} px is below {MIN_FOCAL_PX} px: not a camera",
+                Shown(v)
+            ),
+        ));
+    }
+    if v > MAX_FOCAL_PX {
+        return Err(Error::invalid(
+            path,
+            field,
+            format!(
+                "a focal length of {} px is beyond {MAX_FOCAL_PX} px: not a camera",
+                Shown(v)
+            ),
+        ));
+    }
+    Ok(())
+}
+
+/// Whether the file's lens model is the fisheye (`"opencv"`, the default, is not).
+fn is_fisheye(cj: &CameraJson, path: &Path) -> Result<bool> {
+    match cj.lens.as_deref() {
+        None | Some("opencv") => Ok(false),
+        Some("fisheye") => Ok(true),
+        Some(other) => Err(Error::invalid(
+            path,
+            "lens",
+            format!(
+                "`{}` is not a lens model: use \"opencv\" or \"fisheye\"",
+                crate::io::read::quote(other)
+            ),
+        )),
+    }
+}
+
+/// The lens's distortion, its coefficients checked; none without coefficients, which a
+/// fisheye must have.
+fn read_distortion(cj: &CameraJson, path: &Path) -> Result<Distortion> {
+    let fisheye = is_fisheye(cj, path)?;
+    match &cj.distortion {
         Some(d) => {
             check_finite(path, "distortion", d)?;
             if let Some((i, v)) = d.iter().enumerate().find(|(_, v)| v.abs() > MAX_DISTORTION) {
@@ -108,18 +149,20 @@ pub fn camera_from_json(cj: &CameraJson, path: &Path, name: &str) -> Result<Came
                 ));
             }
             Distortion::from_coefficients(d, fisheye)
-                .map_err(|problem| Error::invalid(path, "distortion", problem))?
+                .map_err(|problem| Error::invalid(path, "distortion", problem))
         }
-        None if fisheye => {
-            return Err(Error::invalid(
-                path,
-                "distortion",
-                "a fisheye lens needs its 4 coefficients",
-            ));
-        }
-        None => Distortion::NONE,
-    };
-    let pose = PoseJson {
+        None if fisheye => Err(Error::invalid(
+            path,
+            "distortion",
+            "a fisheye lens needs its 4 coefficients",
+        )),
+        None => Ok(Distortion::NONE),
+    }
+}
+
+/// The camera's pose (camera_from_world), errors naming the file's top-level fields.
+fn read_pose(cj: &CameraJson, path: &Path) -> Result<Pose> {
+    PoseJson {
         rotation: cj.rotation,
         translation: cj.translation,
     }
@@ -136,16 +179,5 @@ pub fn camera_from_json(cj: &CameraJson, path: &Path, name: &str) -> Result<Came
             problem,
         },
         other => other,
-    })?;
-    Ok(Camera {
-        name: name.to_string(),
-        width: cj.width as u32,
-        height: cj.height as u32,
-        fx: cj.fx,
-        fy: cj.fy,
-        cx: cj.cx,
-        cy: cj.cy,
-        distortion,
-        camera_from_world: pose,
     })
 }

@@ -31,18 +31,14 @@ pub fn capture(c: &Capture, pixels: Option<&[[f64; 3]]>) {
             None => "no mouth label (the over-mouth term is off)".into(),
         }
     );
-    let mean_px = |k: usize| match pixels {
-        None => "-".to_string(),
-        Some(p) => {
-            let [u, l, m] = p[k];
-            match (c.mask_mode(), c.mouth()) {
-                (jawtrack::capture::MaskMode::Combined, Some(_)) => format!("{u:.0} / {m:.0}"),
-                (jawtrack::capture::MaskMode::Combined, None) => format!("{u:.0}"),
-                (_, Some(_)) => format!("{u:.0} / {l:.0} / {m:.0}"),
-                (_, None) => format!("{u:.0} / {l:.0}"),
-            }
-        }
-    };
+    cameras(c, pixels, last);
+    meshes(c);
+    init_and_truth(c);
+}
+
+/// The table of cameras: image and mask sizes, masks found up to frame `last`, mean pixels
+/// per mask and the lens.
+fn cameras(c: &Capture, pixels: Option<&[[f64; 3]]>, last: u32) {
     println!(
         "camera  image      mask       masks found  mean px per mask ({})  distortion",
         match (c.mask_mode(), c.mouth()) {
@@ -65,25 +61,51 @@ pub fn capture(c: &Capture, pixels: Option<&[[f64; 3]]>) {
                 .unwrap_or_else(|| "none".into()),
             in_range,
             c.frame_count(),
-            mean_px(i),
-            match (k.has_distortion(), k.lens_covers_the_image()) {
-                (false, _) => "no".to_string(),
-                (true, true) => format!(
-                    "{} (models drawn through the lens)",
-                    if k.distortion.is_fisheye() {
-                        "fisheye"
-                    } else {
-                        "yes"
-                    }
-                ),
-                (true, false) => format!(
-                    "yes, but the model folds back inside the image, {:.0} px from the centre: \
-                     nothing is drawn past it",
-                    k.lens_reach() * k.fx
-                ),
-            }
+            mean_pixels(c, pixels, i),
+            lens(k)
         );
     }
+}
+
+/// Camera `k`'s mean pixels per mask, the labels the capture's masks carry; `-` when the
+/// masks were not decoded.
+fn mean_pixels(c: &Capture, pixels: Option<&[[f64; 3]]>, k: usize) -> String {
+    match pixels {
+        None => "-".to_string(),
+        Some(p) => {
+            let [u, l, m] = p[k];
+            match (c.mask_mode(), c.mouth()) {
+                (jawtrack::capture::MaskMode::Combined, Some(_)) => format!("{u:.0} / {m:.0}"),
+                (jawtrack::capture::MaskMode::Combined, None) => format!("{u:.0}"),
+                (_, Some(_)) => format!("{u:.0} / {l:.0} / {m:.0}"),
+                (_, None) => format!("{u:.0} / {l:.0}"),
+            }
+        }
+    }
+}
+
+/// A camera's lens: none, drawn through, or folding back inside the image.
+fn lens(k: &jawtrack::geometry::Camera) -> String {
+    match (k.has_distortion(), k.lens_covers_the_image()) {
+        (false, _) => "no".to_string(),
+        (true, true) => format!(
+            "{} (models drawn through the lens)",
+            if k.distortion.is_fisheye() {
+                "fisheye"
+            } else {
+                "yes"
+            }
+        ),
+        (true, false) => format!(
+            "yes, but the model folds back inside the image, {:.0} px from the centre: \
+             nothing is drawn past it",
+            k.lens_reach() * k.fx
+        ),
+    }
+}
+
+/// The meshes as tracked: upper, lower and the mandible when there is one.
+fn meshes(c: &Capture) {
     let describe = |name: &str, m: &jawtrack::mesh::Mesh| {
         let (lo, hi) = m.bounds();
         println!(
@@ -101,6 +123,10 @@ pub fn capture(c: &Capture, pixels: Option<&[[f64; 3]]>) {
     if let Some(m) = &c.mandible() {
         describe("mandible", m);
     }
+}
+
+/// How tracking starts (init.json) and how many frames of ground truth there are.
+fn init_and_truth(c: &Capture) {
     match &c.init() {
         None => println!("init.json: absent (tracking will need first-frame poses)"),
         Some(init) => {

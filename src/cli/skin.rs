@@ -140,147 +140,177 @@ pub fn run(c: Command) -> anyhow::Result<()> {
             out,
             first,
             settings,
-        } => {
-            let settings = settings.read()?;
-            let folders: Vec<&Path> = faces.iter().map(PathBuf::as_path).collect();
-            guard(&out, &[], &folders)?;
-            let subjects = faces
-                .iter()
-                .map(|d| load(d))
-                .collect::<anyhow::Result<Vec<_>>>()?;
-            let clock = Instant::now();
-            let model = if subjects.len() == 1 {
-                let s = &subjects[0];
-                let n = first.map_or(s.frames.len(), |f| (f as usize).min(s.frames.len()));
-                let rows: Vec<usize> = (0..n).collect();
-                learn_single(s, None, &rows, &settings)?
-            } else {
-                let refs: Vec<&Subject> = subjects.iter().collect();
-                learn_multi(&refs, None, None, &settings)?.0
-            };
-            write_json_atomic(&out, &model)?;
-            let r = &model.regressor;
-            println!(
-                "learned from {} ({} frames used, {} skin points, {} components, {} support vectors) in {:.1} s",
-                model.trained_on.join(", "),
-                r.samples,
-                model.skin_points.len(),
-                r.components,
-                r.support.len(),
-                clock.elapsed().as_secs_f64()
-            );
-            println!(
-                "chosen on held-out frames: kernel width {} x median, C {}: bone points {:.3} mm there",
-                r.width_multiple, r.penalty, r.held_out_mm
-            );
-            println!("wrote {}", out.display());
-        }
+        } => learn(&faces, &out, first, &settings),
         Command::Retarget {
             model,
             face,
             out,
             settings,
-        } => {
-            let settings = settings.read()?;
-            guard(&out, &[&model], &[&face])?;
-            let (m, target) = model_and_face(&model, &face)?;
-            let (r, report) = retarget_to(&m, &target, &settings.retarget)?;
-            write_json_atomic(&out, &r)?;
-            println!(
-                "retargeted to {} from its calibration poses: Σ|Φ − B|² {:.3} → {:.3} mm² in {} steps",
-                target.name, report.cost_before, report.cost_after, report.iterations
-            );
-            if !report.cross_validated_mm.is_empty() {
-                println!(
-                    "cross-validated on the calibration poses (λ x {:?}, then none): {:?} mm; chose {}",
-                    jawtrack::skin::retarget::LAMBDA_SCALES,
-                    report.cross_validated_mm,
-                    report
-                        .lambda_scale
-                        .map_or("no retargeting".to_string(), |k| format!("λ x {k}"))
-                );
-            }
-            println!("wrote {}", out.display());
-        }
-        Command::Predict { model, face, out } => {
-            guard(&out, &[&model], &[&face])?;
-            let (m, s) = model_and_face(&model, &face)?;
-            let clock = Instant::now();
-            let poses = m.predict_sequence(&s);
-            let per_frame = clock.elapsed().as_secs_f64() * 1e3 / poses.len().max(1) as f64;
-            jawtrack::formats::write_jaw_poses(&out, &s.frames, &poses)?;
-            println!(
-                "predicted {} frames, {per_frame:.3} ms a frame (reading excluded)",
-                poses.len()
-            );
-            let errors = s.errors_against_jaw(&poses);
-            if !errors.is_empty() {
-                let st = jawtrack::stats::Stats::of(&errors);
-                println!(
-                    "against the jaw poses in the sequence ({} frames): mean {:.3}, median {:.3}, p95 {:.3} mm",
-                    errors.len(),
-                    st.mean,
-                    st.median,
-                    st.p95
-                );
-            }
-            println!("wrote {}", out.display());
-        }
+        } => retarget(&model, &face, &out, &settings),
+        Command::Predict { model, face, out } => predict(&model, &face, &out),
         Command::Fill {
             model,
             face,
             tracks,
             out,
             settings,
-        } => {
-            let settings = settings.read()?;
-            guard(&out, &[&model, &tracks], &[&face])?;
-            let (m, s) = model_and_face(&model, &face)?;
-            let t = jawtrack::formats::read_tracks(&tracks)?;
-            let (filled, r) = jawtrack::skin::fill::fill(&m, &s, &t, &tracks, &settings.retarget)?;
-            write_json_atomic(&out, &filled)?;
-            println!(
-                "{} frames from the teeth, {} from the skin; retargeted on {} confident frames ({:?}): Σ|Φ − B|² {:.3} → {:.3} mm²",
-                r.teeth_frames,
-                r.skin_frames,
-                r.calibration_frames.len(),
-                r.calibration_frames,
-                r.retarget.cost_before,
-                r.retarget.cost_after
-            );
-            if !r.left_out.is_empty() {
-                println!(
-                    "left out of the calibration, their teeth pose far from what the skin says: frames {:?}",
-                    r.left_out
-                );
-            }
-            println!("wrote {}", out.display());
-        }
+        } => fill(&model, &face, &tracks, &out, &settings),
         Command::Eval {
             dir,
             json,
             plot,
             settings,
-        } => {
-            let settings = settings.read()?;
-            if let Some(p) = &plot {
-                jawtrack::io::check_replaceable(p)?;
-            }
-            let dirs = subject_dirs(&dir)?;
-            let subjects = dirs
-                .iter()
-                .map(|(_, d)| load(d))
-                .collect::<anyhow::Result<Vec<_>>>()?;
-            let e = evaluate(&dir, &subjects, &settings, &|m| eprintln!("{m}"))?;
-            if let Some(p) = &plot {
-                jawtrack::skin::plot::error_over_frames(p, &e)?;
-            }
-            if json {
-                println!("{}", serde_json::to_string_pretty(&summary(&e))?);
-            } else {
-                print_table(&e);
-            }
-        }
+        } => eval(&dir, json, plot.as_deref(), &settings),
+    }
+}
+
+/// `skin learn`: learn a single- or multi-subject model from the face sequences and write it.
+fn learn(
+    faces: &[PathBuf],
+    out: &Path,
+    first: Option<u32>,
+    settings: &SettingsArg,
+) -> anyhow::Result<()> {
+    let settings = settings.read()?;
+    let folders: Vec<&Path> = faces.iter().map(PathBuf::as_path).collect();
+    guard(out, &[], &folders)?;
+    let subjects = faces
+        .iter()
+        .map(|d| load(d))
+        .collect::<anyhow::Result<Vec<_>>>()?;
+    let clock = Instant::now();
+    let model = if subjects.len() == 1 {
+        let s = &subjects[0];
+        let n = first.map_or(s.frames.len(), |f| (f as usize).min(s.frames.len()));
+        let rows: Vec<usize> = (0..n).collect();
+        learn_single(s, None, &rows, &settings)?
+    } else {
+        let refs: Vec<&Subject> = subjects.iter().collect();
+        learn_multi(&refs, None, None, &settings)?.0
+    };
+    write_json_atomic(out, &model)?;
+    let r = &model.regressor;
+    println!(
+        "learned from {} ({} frames used, {} skin points, {} components, {} support vectors) in {:.1} s",
+        model.trained_on.join(", "),
+        r.samples,
+        model.skin_points.len(),
+        r.components,
+        r.support.len(),
+        clock.elapsed().as_secs_f64()
+    );
+    println!(
+        "chosen on held-out frames: kernel width {} x median, C {}: bone points {:.3} mm there",
+        r.width_multiple, r.penalty, r.held_out_mm
+    );
+    println!("wrote {}", out.display());
+    Ok(())
+}
+
+/// `skin retarget`: carry the model to a new subject from its calibration poses and write it.
+fn retarget(model: &Path, face: &Path, out: &Path, settings: &SettingsArg) -> anyhow::Result<()> {
+    let settings = settings.read()?;
+    guard(out, &[model], &[face])?;
+    let (m, target) = model_and_face(model, face)?;
+    let (r, report) = retarget_to(&m, &target, &settings.retarget)?;
+    write_json_atomic(out, &r)?;
+    println!(
+        "retargeted to {} from its calibration poses: Σ|Φ − B|² {:.3} → {:.3} mm² in {} steps",
+        target.name, report.cost_before, report.cost_after, report.iterations
+    );
+    if !report.cross_validated_mm.is_empty() {
+        println!(
+            "cross-validated on the calibration poses (λ x {:?}, then none): {:?} mm; chose {}",
+            jawtrack::skin::retarget::LAMBDA_SCALES,
+            report.cross_validated_mm,
+            report
+                .lambda_scale
+                .map_or("no retargeting".to_string(), |k| format!("λ x {k}"))
+        );
+    }
+    println!("wrote {}", out.display());
+    Ok(())
+}
+
+/// `skin predict`: predict the jaw in every frame, write the poses and report their error.
+fn predict(model: &Path, face: &Path, out: &Path) -> anyhow::Result<()> {
+    guard(out, &[model], &[face])?;
+    let (m, s) = model_and_face(model, face)?;
+    let clock = Instant::now();
+    let poses = m.predict_sequence(&s);
+    let per_frame = clock.elapsed().as_secs_f64() * 1e3 / poses.len().max(1) as f64;
+    jawtrack::formats::write_jaw_poses(out, &s.frames, &poses)?;
+    println!(
+        "predicted {} frames, {per_frame:.3} ms a frame (reading excluded)",
+        poses.len()
+    );
+    let errors = s.errors_against_jaw(&poses);
+    if !errors.is_empty() {
+        let st = jawtrack::stats::Stats::of(&errors);
+        println!(
+            "against the jaw poses in the sequence ({} frames): mean {:.3}, median {:.3}, p95 {:.3} mm",
+            errors.len(),
+            st.mean,
+            st.median,
+            st.p95
+        );
+    }
+    println!("wrote {}", out.display());
+    Ok(())
+}
+
+/// `skin fill`: fill the unconfident frames of a tracks.json from the skin and write it.
+fn fill(
+    model: &Path,
+    face: &Path,
+    tracks: &Path,
+    out: &Path,
+    settings: &SettingsArg,
+) -> anyhow::Result<()> {
+    let settings = settings.read()?;
+    guard(out, &[model, tracks], &[face])?;
+    let (m, s) = model_and_face(model, face)?;
+    let t = jawtrack::formats::read_tracks(tracks)?;
+    let (filled, r) = jawtrack::skin::fill::fill(&m, &s, &t, tracks, &settings.retarget)?;
+    write_json_atomic(out, &filled)?;
+    println!(
+        "{} frames from the teeth, {} from the skin; retargeted on {} confident frames ({:?}): Σ|Φ − B|² {:.3} → {:.3} mm²",
+        r.teeth_frames,
+        r.skin_frames,
+        r.calibration_frames.len(),
+        r.calibration_frames,
+        r.retarget.cost_before,
+        r.retarget.cost_after
+    );
+    if !r.left_out.is_empty() {
+        println!(
+            "left out of the calibration, their teeth pose far from what the skin says: frames {:?}",
+            r.left_out
+        );
+    }
+    println!("wrote {}", out.display());
+    Ok(())
+}
+
+/// `skin eval`: leave-one-subject-out evaluation of the subjects in `dir`, as JSON or a table.
+fn eval(dir: &Path, json: bool, plot: Option<&Path>, settings: &SettingsArg) -> anyhow::Result<()> {
+    let settings = settings.read()?;
+    if let Some(p) = plot {
+        jawtrack::io::check_replaceable(p)?;
+    }
+    let dirs = subject_dirs(dir)?;
+    let subjects = dirs
+        .iter()
+        .map(|(_, d)| load(d))
+        .collect::<anyhow::Result<Vec<_>>>()?;
+    let e = evaluate(dir, &subjects, &settings, &|m| eprintln!("{m}"))?;
+    if let Some(p) = plot {
+        jawtrack::skin::plot::error_over_frames(p, &e)?;
+    }
+    if json {
+        println!("{}", serde_json::to_string_pretty(&summary(&e))?);
+    } else {
+        print_table(&e);
     }
     Ok(())
 }

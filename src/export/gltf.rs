@@ -50,6 +50,20 @@ struct Builder {
 }
 
 impl Builder {
+    /// An empty glTF 2.0 document, signed by this version of jawtrack.
+    fn new() -> Builder {
+        let mut b = Builder {
+            root: json::Root::default(),
+            bytes: Vec::new(),
+        };
+        b.root.asset = json::Asset {
+            generator: Some(format!("jawtrack {}", env!("CARGO_PKG_VERSION"))),
+            version: "2.0".into(),
+            ..Default::default()
+        };
+        b
+    }
+
     fn view(
         &mut self,
         data: &[u8],
@@ -193,6 +207,73 @@ impl Builder {
             weights: None,
         })
     }
+
+    /// A node holding `part`'s mesh, named as the part.
+    fn node(&mut self, part: &Part) -> json::Index<json::Node> {
+        let mesh = self.mesh(part);
+        self.root.push(json::Node {
+            mesh: Some(mesh),
+            name: Some(part.name.to_string()),
+            ..Default::default()
+        })
+    }
+
+    /// The animation `name` of `node` by `keys`, linearly interpolated.
+    fn animate(&mut self, node: json::Index<json::Node>, keys: &[Key], name: &str) {
+        let times: Vec<f32> = keys.iter().map(|k| k.time_s).collect();
+        let moves: Vec<f32> = keys.iter().flat_map(|k| translation(&k.jaw)).collect();
+        let turns = short_way_turns(keys);
+        let input = self.floats(&times, 1, true, None);
+        let t_out = self.floats(&moves, 3, false, None);
+        let r_out = self.floats(&turns, 4, false, None);
+        let sampler = |output| json::animation::Sampler {
+            extensions: None,
+            extras: Default::default(),
+            input,
+            interpolation: Valid(json::animation::Interpolation::Linear),
+            output,
+        };
+        let channel = |sampler: u32, path| json::animation::Channel {
+            sampler: json::Index::new(sampler),
+            target: json::animation::Target {
+                extensions: None,
+                extras: Default::default(),
+                node,
+                path: Valid(path),
+            },
+            extensions: None,
+            extras: Default::default(),
+        };
+        self.root.push(json::Animation {
+            extensions: None,
+            extras: Default::default(),
+            channels: vec![
+                channel(0, json::animation::Property::Translation),
+                channel(1, json::animation::Property::Rotation),
+            ],
+            name: Some(name.to_string()),
+            samplers: vec![sampler(t_out), sampler(r_out)],
+        });
+    }
+
+    /// The document, with the bytes embedded as its one buffer, as pretty JSON ending in a
+    /// newline.
+    fn finish(mut self) -> Vec<u8> {
+        let uri = format!(
+            "data:application/octet-stream;base64,{}",
+            base64::engine::general_purpose::STANDARD.encode(&self.bytes)
+        );
+        self.root.push(json::Buffer {
+            byte_length: USize64(self.bytes.len() as u64),
+            name: None,
+            uri: Some(uri),
+            extensions: None,
+            extras: Default::default(),
+        });
+        let mut out = self.root.to_vec_pretty().expect("plain data serialises");
+        out.push(b'\n');
+        out
+    }
 }
 
 fn translation(p: &Pose) -> [f32; 3] {
@@ -207,6 +288,22 @@ fn quaternion(p: &Pose) -> [f32; 4] {
     [c.x as f32, c.y as f32, c.z as f32, c.w as f32]
 }
 
+/// The keys' rotations as glTF quaternions, flattened; neighbouring keys on the same side of
+/// the quaternion sphere, so interpolation takes the short way.
+fn short_way_turns(keys: &[Key]) -> Vec<f32> {
+    let mut turns: Vec<f32> = Vec::with_capacity(keys.len() * 4);
+    let mut last = [0.0f32, 0.0, 0.0, 1.0];
+    for k in keys {
+        let mut q = quaternion(&k.jaw);
+        if q.iter().zip(&last).map(|(a, b)| a * b).sum::<f32>() < 0.0 {
+            q = q.map(|v| -v);
+        }
+        turns.extend_from_slice(&q);
+        last = q;
+    }
+    turns
+}
+
 /// The glTF document: `upper` (when given) at the root, fixed; `lower` animated by `keys`
 /// (one key: posed, not animated); `mandible` as the lower arch's child. `animation` names
 /// the animation.
@@ -217,32 +314,10 @@ pub fn write_gltf(
     keys: &[Key],
     animation: &str,
 ) -> Vec<u8> {
-    let mut b = Builder {
-        root: json::Root::default(),
-        bytes: Vec::new(),
-    };
-    b.root.asset = json::Asset {
-        generator: Some(format!("jawtrack {}", env!("CARGO_PKG_VERSION"))),
-        version: "2.0".into(),
-        ..Default::default()
-    };
-    let upper_node = upper.map(|u| {
-        let mesh = b.mesh(u);
-        b.root.push(json::Node {
-            mesh: Some(mesh),
-            name: Some(u.name.to_string()),
-            ..Default::default()
-        })
-    });
+    let mut b = Builder::new();
+    let upper_node = upper.map(|u| b.node(u));
     let lower_mesh = b.mesh(lower);
-    let mandible_node = mandible.map(|m| {
-        let mesh = b.mesh(m);
-        b.root.push(json::Node {
-            mesh: Some(mesh),
-            name: Some(m.name.to_string()),
-            ..Default::default()
-        })
-    });
+    let mandible_node = mandible.map(|m| b.node(m));
     let first = keys.first().map(|k| k.jaw).unwrap_or_default();
     let lower_node = b.root.push(json::Node {
         mesh: Some(lower_mesh),
@@ -259,66 +334,8 @@ pub fn write_gltf(
         nodes: upper_node.into_iter().chain([lower_node]).collect(),
     });
     b.root.scene = Some(scene);
-
     if keys.len() > 1 {
-        let times: Vec<f32> = keys.iter().map(|k| k.time_s).collect();
-        let moves: Vec<f32> = keys.iter().flat_map(|k| translation(&k.jaw)).collect();
-        // Neighbouring keys on the same side of the quaternion sphere, so interpolation takes
-        // the short way.
-        let mut turns: Vec<f32> = Vec::with_capacity(keys.len() * 4);
-        let mut last = [0.0f32, 0.0, 0.0, 1.0];
-        for k in keys {
-            let mut q = quaternion(&k.jaw);
-            if q.iter().zip(&last).map(|(a, b)| a * b).sum::<f32>() < 0.0 {
-                q = q.map(|v| -v);
-            }
-            turns.extend_from_slice(&q);
-            last = q;
-        }
-        let input = b.floats(&times, 1, true, None);
-        let t_out = b.floats(&moves, 3, false, None);
-        let r_out = b.floats(&turns, 4, false, None);
-        let sampler = |output| json::animation::Sampler {
-            extensions: None,
-            extras: Default::default(),
-            input,
-            interpolation: Valid(json::animation::Interpolation::Linear),
-            output,
-        };
-        let channel = |sampler: u32, path| json::animation::Channel {
-            sampler: json::Index::new(sampler),
-            target: json::animation::Target {
-                extensions: None,
-                extras: Default::default(),
-                node: lower_node,
-                path: Valid(path),
-            },
-            extensions: None,
-            extras: Default::default(),
-        };
-        b.root.push(json::Animation {
-            extensions: None,
-            extras: Default::default(),
-            channels: vec![
-                channel(0, json::animation::Property::Translation),
-                channel(1, json::animation::Property::Rotation),
-            ],
-            name: Some(animation.to_string()),
-            samplers: vec![sampler(t_out), sampler(r_out)],
-        });
+        b.animate(lower_node, keys, animation);
     }
-    let uri = format!(
-        "data:application/octet-stream;base64,{}",
-        base64::engine::general_purpose::STANDARD.encode(&b.bytes)
-    );
-    b.root.push(json::Buffer {
-        byte_length: USize64(b.bytes.len() as u64),
-        name: None,
-        uri: Some(uri),
-        extensions: None,
-        extras: Default::default(),
-    });
-    let mut out = b.root.to_vec_pretty().expect("plain data serialises");
-    out.push(b'\n');
-    out
+    b.finish()
 }

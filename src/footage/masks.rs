@@ -201,6 +201,11 @@ fn read_labelmap(path: &Path) -> Result<BTreeMap<String, [u8; 3]>> {
     Ok(out)
 }
 
+/// Per source frame number, each file with the class its pixels become.
+type SourceFrames = BTreeMap<i64, Vec<(Class, PathBuf)>>;
+/// A CVAT label map: each colour and the class it paints.
+type ColourClasses = Vec<([u8; 3], Class)>;
+
 /// Write masks/<camera>/<frame:06>.png under `capture` from `source`, each source label in
 /// `labels` (label → class) becoming its class's value. Refuses to write into a folder that
 /// holds masks unless `replace`.
@@ -213,6 +218,35 @@ pub fn import_masks(
     replace: bool,
 ) -> Result<Imported> {
     let classes: Vec<Class> = labels.iter().map(|l| l.1).collect();
+    check_classes(capture, &classes)?;
+    let out_dir = capture.join("masks").join(camera);
+    check_output(&out_dir, replace)?;
+    // Per frame, per class, the source image's pixels that belong to it.
+    let (frames, colours) = match source {
+        Source::Objects(dir) => (object_frames(dir, labels)?, None),
+        Source::Cvat(dir) => {
+            let (frames, colours) = cvat_frames(dir, labels)?;
+            (frames, Some(colours))
+        }
+    };
+    if frames.is_empty() {
+        return Err(Error::invalid(
+            capture,
+            "masks",
+            "the source holds no PNG frames",
+        ));
+    }
+    let mut imported = Imported::default();
+    for (n, files) in &frames {
+        imported.conflicts += write_frame(&out_dir, *n, files, frame_offset, colours.as_deref())?;
+        imported.frames += 1;
+    }
+    imported.masks_block = masks_block(&classes);
+    Ok(imported)
+}
+
+/// Refuses labels that mix the combined and per-arch modes, or that name no teeth at all.
+fn check_classes(capture: &Path, classes: &[Class]) -> Result<()> {
     let has = |c: Class| classes.contains(&c);
     if has(Class::Teeth) && (has(Class::Upper) || has(Class::Lower)) {
         return Err(Error::invalid(
@@ -228,161 +262,212 @@ pub fn import_masks(
             "no label is mapped to teeth, upper or lower",
         ));
     }
-    let out_dir = capture.join("masks").join(camera);
+    Ok(())
+}
+
+/// Refuses an output folder that holds anything already, unless `replace`.
+fn check_output(out_dir: &Path, replace: bool) -> Result<()> {
     if !replace
         && out_dir.is_dir()
-        && std::fs::read_dir(&out_dir)
+        && std::fs::read_dir(out_dir)
             .map(|mut d| d.next().is_some())
             .unwrap_or(false)
     {
         return Err(Error::invalid(
-            &out_dir,
+            out_dir,
             "output",
             "holds masks already: pass --replace to overwrite them",
         ));
     }
-    // Per frame, per class, the source image's pixels that belong to it.
-    let mut frames: BTreeMap<i64, Vec<(Class, PathBuf)>> = BTreeMap::new();
-    let colours = match source {
-        Source::Objects(dir) => {
-            for (object, class) in labels {
-                let sub = dir.join(object);
-                if !sub.is_dir() {
-                    return Err(Error::Missing {
-                        path: sub,
-                        what: format!("object folder `{object}`"),
-                    });
-                }
-                for (n, p) in pngs(&sub)? {
-                    frames.entry(n).or_default().push((*class, p));
-                }
-            }
-            None
+    Ok(())
+}
+
+/// The frames of a folder per object: each object's PNGs, as its class.
+fn object_frames(dir: &Path, labels: &[(String, Class)]) -> Result<SourceFrames> {
+    let mut frames = SourceFrames::new();
+    for (object, class) in labels {
+        let sub = dir.join(object);
+        if !sub.is_dir() {
+            return Err(Error::Missing {
+                path: sub,
+                what: format!("object folder `{object}`"),
+            });
         }
-        Source::Cvat(dir) => {
-            let map = read_labelmap(&dir.join("labelmap.txt"))?;
-            let mut colours = Vec::new();
-            for (name, class) in labels {
-                let c = map.get(name).ok_or_else(|| {
-                    Error::invalid(
-                        dir.join("labelmap.txt"),
-                        name,
-                        format!(
-                            "no such label; the map has {}",
-                            map.keys().cloned().collect::<Vec<_>>().join(", ")
-                        ),
-                    )
-                })?;
-                colours.push((*c, *class));
-            }
-            // One file a frame; each pixel's class comes from its colour.
-            for (n, p) in pngs(&dir.join("SegmentationClass"))? {
-                frames.entry(n).or_default().push((Class::Teeth, p));
-            }
-            Some(colours)
+        for (n, p) in pngs(&sub)? {
+            frames.entry(n).or_default().push((*class, p));
         }
-    };
-    if frames.is_empty() {
+    }
+    Ok(frames)
+}
+
+/// The frames of a CVAT export, and the colour each label's pixels have in them.
+fn cvat_frames(dir: &Path, labels: &[(String, Class)]) -> Result<(SourceFrames, ColourClasses)> {
+    let map = read_labelmap(&dir.join("labelmap.txt"))?;
+    let mut colours = Vec::new();
+    for (name, class) in labels {
+        let c = map.get(name).ok_or_else(|| {
+            Error::invalid(
+                dir.join("labelmap.txt"),
+                name,
+                format!(
+                    "no such label; the map has {}",
+                    map.keys().cloned().collect::<Vec<_>>().join(", ")
+                ),
+            )
+        })?;
+        colours.push((*c, *class));
+    }
+    // One file a frame; each pixel's class comes from its colour.
+    let mut frames = SourceFrames::new();
+    for (n, p) in pngs(&dir.join("SegmentationClass"))? {
+        frames.entry(n).or_default().push((Class::Teeth, p));
+    }
+    Ok((frames, colours))
+}
+
+/// Paints source frame `n` from its files and writes it as capture frame `n + frame_offset`;
+/// returns how many pixels two classes claimed. `colours` is the CVAT label colours, `None`
+/// for object masks.
+fn write_frame(
+    out_dir: &Path,
+    n: i64,
+    files: &[(Class, PathBuf)],
+    frame_offset: i64,
+    colours: Option<&[([u8; 3], Class)]>,
+) -> Result<u64> {
+    let frame = n + frame_offset;
+    let Ok(frame) = u32::try_from(frame) else {
         return Err(Error::invalid(
-            capture,
-            "masks",
-            "the source holds no PNG frames",
+            &files[0].1,
+            "frame",
+            format!("frame {n} + offset {frame_offset} is negative"),
         ));
-    }
-    let mut imported = Imported::default();
-    for (n, files) in &frames {
-        let frame = n + frame_offset;
-        let Ok(frame) = u32::try_from(frame) else {
-            return Err(Error::invalid(
-                &files[0].1,
-                "frame",
-                format!("frame {n} + offset {frame_offset} is negative"),
-            ));
-        };
-        let mut size = None;
-        let mut out: Vec<u8> = Vec::new();
-        let mut claimed: Vec<u8> = Vec::new();
-        let mut paint =
-            |path: &Path, w: u32, h: u32, pixel: &dyn Fn(usize) -> Option<Class>| -> Result<()> {
-                match size {
-                    None => {
-                        size = Some((w, h));
-                        out = vec![0; (w * h) as usize];
-                        claimed = vec![0; (w * h) as usize];
-                    }
-                    Some(s) if s != (w, h) => {
-                        return Err(Error::invalid(
-                            path,
-                            "size",
-                            format!("{w}x{h}, but frame {n}'s other masks are {}x{}", s.0, s.1),
-                        ));
-                    }
-                    _ => {}
-                }
-                for i in 0..out.len() {
-                    if let Some(class) = pixel(i) {
-                        let v = class.value();
-                        match claimed[i] {
-                            0 => {
-                                claimed[i] = 1;
-                                out[i] = v;
-                            }
-                            _ if out[i] == v => {}
-                            // Teeth over the mouth interior (a tooth's edge seen inside the lips);
-                            // two arches on one pixel: neither.
-                            _ if class == Class::Mouth => {}
-                            _ if out[i] == MOUTH_VALUE => out[i] = v,
-                            _ => {
-                                if claimed[i] == 1 {
-                                    imported.conflicts += 1;
-                                }
-                                claimed[i] = 2;
-                                out[i] = 0;
-                            }
-                        }
-                    }
-                }
-                Ok(())
-            };
-        for (class, path) in files {
-            let img = open_image(path)?;
-            let (w, h) = (img.width(), img.height());
-            match &colours {
-                None => {
-                    let on = object_pixels(&img);
-                    paint(path, w, h, &|i| on[i].then_some(*class))?;
-                }
-                Some(colours) => {
-                    let rgb = img.into_rgb8();
-                    let raw = rgb.as_raw();
-                    paint(path, w, h, &|i| {
-                        let px = [raw[3 * i], raw[3 * i + 1], raw[3 * i + 2]];
-                        colours
-                            .iter()
-                            .find(|(c, _)| *c == px)
-                            .map(|(_, class)| *class)
-                    })?;
-                }
+    };
+    let mut mask = FrameMask::new(n);
+    for (class, path) in files {
+        let img = open_image(path)?;
+        let (w, h) = (img.width(), img.height());
+        match colours {
+            None => {
+                let on = object_pixels(&img);
+                mask.paint(path, w, h, &|i| on[i].then_some(*class))?;
+            }
+            Some(colours) => {
+                let rgb = img.into_rgb8();
+                let raw = rgb.as_raw();
+                mask.paint(path, w, h, &|i| {
+                    let px = [raw[3 * i], raw[3 * i + 1], raw[3 * i + 2]];
+                    colours
+                        .iter()
+                        .find(|(c, _)| *c == px)
+                        .map(|(_, class)| *class)
+                })?;
             }
         }
-        let (w, h) = size.expect("a frame has a file");
-        let png = crate::io::encode_png(&out, w, h, image::ExtendedColorType::L8);
-        write_atomic(&out_dir.join(format!("{frame:06}.png")), &png)?;
-        imported.frames += 1;
     }
+    let (w, h) = mask.size.expect("a frame has a file");
+    let png = crate::io::encode_png(&mask.out, w, h, image::ExtendedColorType::L8);
+    write_atomic(&out_dir.join(format!("{frame:06}.png")), &png)?;
+    Ok(mask.conflicts)
+}
+
+/// One frame's mask as it is painted from its source files.
+struct FrameMask {
+    /// The source frame number, for messages.
+    n: i64,
+    /// The frame's size, fixed by its first file.
+    size: Option<(u32, u32)>,
+    out: Vec<u8>,
+    /// Per pixel: 0 unclaimed, 1 claimed by one class, 2 claimed by two (left unlabelled).
+    claimed: Vec<u8>,
+    /// Pixels two classes claimed.
+    conflicts: u64,
+}
+
+impl FrameMask {
+    /// An empty mask for source frame `n`, sized by the first file painted.
+    fn new(n: i64) -> Self {
+        FrameMask {
+            n,
+            size: None,
+            out: Vec::new(),
+            claimed: Vec::new(),
+            conflicts: 0,
+        }
+    }
+
+    /// Paints a `w`×`h` file's pixels of a class (`pixel` gives each pixel's, if any) onto
+    /// the mask; refuses a file the size of none of the frame's others.
+    fn paint(
+        &mut self,
+        path: &Path,
+        w: u32,
+        h: u32,
+        pixel: &dyn Fn(usize) -> Option<Class>,
+    ) -> Result<()> {
+        match self.size {
+            None => {
+                self.size = Some((w, h));
+                self.out = vec![0; (w * h) as usize];
+                self.claimed = vec![0; (w * h) as usize];
+            }
+            Some(s) if s != (w, h) => {
+                let n = self.n;
+                return Err(Error::invalid(
+                    path,
+                    "size",
+                    format!("{w}x{h}, but frame {n}'s other masks are {}x{}", s.0, s.1),
+                ));
+            }
+            _ => {}
+        }
+        for i in 0..self.out.len() {
+            if let Some(class) = pixel(i) {
+                self.claim(i, class);
+            }
+        }
+        Ok(())
+    }
+
+    /// Gives pixel `i` to `class`, settling a pixel another class holds already.
+    fn claim(&mut self, i: usize, class: Class) {
+        let v = class.value();
+        match self.claimed[i] {
+            0 => {
+                self.claimed[i] = 1;
+                self.out[i] = v;
+            }
+            _ if self.out[i] == v => {}
+            // Teeth over the mouth interior (a tooth's edge seen inside the lips);
+            // two arches on one pixel: neither.
+            _ if class == Class::Mouth => {}
+            _ if self.out[i] == MOUTH_VALUE => self.out[i] = v,
+            _ => {
+                if self.claimed[i] == 1 {
+                    self.conflicts += 1;
+                }
+                self.claimed[i] = 2;
+                self.out[i] = 0;
+            }
+        }
+    }
+}
+
+/// The capture.json `masks` block for masks of these classes.
+fn masks_block(classes: &[Class]) -> String {
+    let has = |c: Class| classes.contains(&c);
     let mouth = if has(Class::Mouth) {
         format!(", \"mouth\": {MOUTH_VALUE}")
     } else {
         String::new()
     };
-    imported.masks_block = if has(Class::Teeth) {
+    if has(Class::Teeth) {
         format!("\"masks\": {{\"dir\": \"masks\", \"mode\": \"combined\"{mouth}}}")
     } else {
         format!(
             "\"masks\": {{\"dir\": \"masks\", \"mode\": \"per-arch\", \"upper\": {UPPER_VALUE}, \"lower\": {LOWER_VALUE}{mouth}}}"
         )
-    };
-    Ok(imported)
+    }
 }
 
 #[cfg(test)]

@@ -211,6 +211,41 @@ pub fn extract(
     options: &Extract,
     mut progress: impl FnMut(u64),
 ) -> Result<u64> {
+    check_extract(video, out, options)?;
+    let parent = out.parent().unwrap_or(Path::new("."));
+    std::fs::create_dir_all(parent).map_err(|e| write_error(parent, e))?;
+    let stage = tempfile::Builder::new()
+        .prefix(".import-")
+        .tempdir_in(parent)
+        .map_err(|e| write_error(parent, e))?;
+
+    let program = ffmpeg_program();
+    let input = input_url(video)?;
+    // The stage's path is absolute, so it is never read as an option either.
+    let pattern = std::path::absolute(stage.path())
+        .map_err(|e| write_error(stage.path(), e))?
+        .join(format!("%06d.{}", options.format.extension()));
+    let cmd = ffmpeg_command(&program, input, pattern, options);
+    run_ffmpeg(cmd, &program, video, &mut progress)?;
+    let written = count_written(stage.path(), video, options.first)?;
+    progress(written);
+    // The stage is removed with `stage` if a rename fails; once renamed, it is the output.
+    move_into_place(stage.path(), out, parent)?;
+    let _ = stage.keep();
+    Ok(written)
+}
+
+/// The error of a failed write at `path`.
+fn write_error(path: &Path, error: std::io::Error) -> Error {
+    Error::Write {
+        path: path.to_path_buf(),
+        error,
+    }
+}
+
+/// Refuses a missing video, frames beyond the capture's numbers, and an output that is a
+/// link or exists without `replace`.
+fn check_extract(video: &Path, out: &Path, options: &Extract) -> Result<()> {
     if !video.is_file() {
         return Err(Error::Missing {
             path: video.to_path_buf(),
@@ -251,30 +286,24 @@ pub fn extract(
             "exists: remove it, or pass --replace to write the frames anew",
         ));
     }
-    let parent = out.parent().unwrap_or(Path::new("."));
-    let werr = |path: &Path, error| Error::Write {
-        path: path.to_path_buf(),
-        error,
-    };
-    std::fs::create_dir_all(parent).map_err(|e| werr(parent, e))?;
-    let stage = tempfile::Builder::new()
-        .prefix(".import-")
-        .tempdir_in(parent)
-        .map_err(|e| werr(parent, e))?;
+    Ok(())
+}
 
-    let program = ffmpeg_program();
-    let input = input_url(video)?;
-    // The stage's path is absolute, so it is never read as an option either.
-    let pattern = std::path::absolute(stage.path())
-        .map_err(|e| werr(stage.path(), e))?
-        .join(format!("%06d.{}", options.format.extension()));
-    let mut cmd = Command::new(&program);
+/// The ffmpeg command writing the chosen frames of `input` to the numbered files `pattern`,
+/// reporting its progress on stdout.
+fn ffmpeg_command(
+    program: &Path,
+    input: std::ffi::OsString,
+    pattern: PathBuf,
+    options: &Extract,
+) -> Command {
+    let mut cmd = Command::new(program);
     cmd.args(["-nostdin", "-hide_banner", "-loglevel", "error", "-nostats"])
         .args(["-progress", "pipe:1"])
         .arg("-i")
         .arg(input)
         .args(["-map", "0:v:0"])
-        .args(passthrough_args(&program));
+        .args(passthrough_args(program));
     if options.first > 0 {
         cmd.args(["-vf", &format!("select=gte(n\\,{})", options.first)]);
     }
@@ -289,7 +318,18 @@ pub fn extract(
         .stdin(Stdio::null())
         .stdout(Stdio::piped())
         .stderr(Stdio::piped());
-    let mut child = cmd.spawn().map_err(|e| spawn_error(&program, video, e))?;
+    cmd
+}
+
+/// Runs ffmpeg to the end, passing on the frame counts it reports; its error output becomes
+/// the error when it fails.
+fn run_ffmpeg(
+    mut cmd: Command,
+    program: &Path,
+    video: &Path,
+    progress: &mut impl FnMut(u64),
+) -> Result<()> {
+    let mut child = cmd.spawn().map_err(|e| spawn_error(program, video, e))?;
     let mut stderr = child.stderr.take().expect("piped");
     let errors = std::thread::spawn(move || {
         let mut s = String::new();
@@ -305,7 +345,7 @@ pub fn extract(
             progress(n);
         }
     }
-    let status = child.wait().map_err(|e| spawn_error(&program, video, e))?;
+    let status = child.wait().map_err(|e| spawn_error(program, video, e))?;
     let errors = errors.join().unwrap_or_default();
     if !status.success() {
         return Err(Error::invalid(
@@ -314,9 +354,15 @@ pub fn extract(
             format!("ffmpeg failed ({status}): {}", errors.trim()),
         ));
     }
-    let written = std::fs::read_dir(stage.path())
+    Ok(())
+}
+
+/// How many frames ffmpeg wrote into `stage`; none is an error (the video ends before
+/// `first`).
+fn count_written(stage: &Path, video: &Path, first: u64) -> Result<u64> {
+    let written = std::fs::read_dir(stage)
         .map_err(|e| Error::Read {
-            path: stage.path().to_path_buf(),
+            path: stage.to_path_buf(),
             error: e,
         })?
         .count() as u64;
@@ -324,29 +370,29 @@ pub fn extract(
         return Err(Error::invalid(
             video,
             "video",
-            format!(
-                "no frames from frame {} on: the video has fewer frames",
-                options.first
-            ),
+            format!("no frames from frame {first} on: the video has fewer frames"),
         ));
     }
-    progress(written);
-    // The stage is removed with `stage` if a rename fails; once renamed, it is the output.
+    Ok(written)
+}
+
+/// Renames the filled `stage` to `out`, replacing what was there only once the new frames
+/// are in place (and putting it back if they cannot be).
+fn move_into_place(stage: &Path, out: &Path, parent: &Path) -> Result<()> {
     if out.exists() {
         let old = parent.join(format!(
             ".replaced-{}",
             out.file_name().unwrap_or_default().to_string_lossy()
         ));
-        std::fs::rename(out, &old).map_err(|e| werr(out, e))?;
-        if let Err(e) = std::fs::rename(stage.path(), out) {
+        std::fs::rename(out, &old).map_err(|e| write_error(out, e))?;
+        if let Err(e) = std::fs::rename(stage, out) {
             // Put the frames that were there back.
             let _ = std::fs::rename(&old, out);
-            return Err(werr(out, e));
+            return Err(write_error(out, e));
         }
-        std::fs::remove_dir_all(&old).map_err(|e| werr(&old, e))?;
+        std::fs::remove_dir_all(&old).map_err(|e| write_error(&old, e))?;
     } else {
-        std::fs::rename(stage.path(), out).map_err(|e| werr(out, e))?;
+        std::fs::rename(stage, out).map_err(|e| write_error(out, e))?;
     }
-    let _ = stage.keep();
-    Ok(written)
+    Ok(())
 }

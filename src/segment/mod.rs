@@ -7,6 +7,7 @@
 //! capture format, so a user can look at any frame, correct it and track again.
 
 pub mod colour_model;
+mod distance;
 pub mod graph_cut;
 pub mod picture;
 pub mod score;

@@ -4,10 +4,10 @@
 //! lips and skin), with a contrast-sensitive smoothness term as in GrabCut.
 
 use super::colour_model::{ColourModel, luma};
+use super::distance::{distance_transform, mouth_span_distance};
 use super::graph_cut::GridCut;
 use super::settings::SegmentSettings;
 use crate::capture::masks::MOUTH_BIT;
-use crate::capture::{LOWER_BIT, UPPER_BIT};
 
 /// The colour models of one camera: teeth, mouth interior, lips and skin.
 #[derive(Debug, Clone)]
@@ -39,6 +39,13 @@ struct Roi {
     h: usize,
 }
 
+impl Roi {
+    /// The picture's pixel (x, y) at index `i` of the ROI's local, row-major order.
+    fn at(&self, i: usize) -> (usize, usize) {
+        (self.x0 + i % self.w, self.y0 + i / self.w)
+    }
+}
+
 /// Segment `rgb` (`width` x `height`, 3 bytes a pixel) given `prior`, the label bits of the
 /// models drawn at the expected poses (UPPER_BIT / LOWER_BIT per pixel, 0 elsewhere).
 /// `models` are learned here when `None`, and updated after.
@@ -60,25 +67,12 @@ pub fn segment_picture(
     let reach = (settings.reach * width as f64).max(1.5) as f32;
     let n = roi.w * roi.h;
     // Local coordinates inside the ROI from here on.
-    let at = |i: usize| (roi.x0 + i % roi.w, roi.y0 + i / roi.w);
+    let at = |i: usize| roi.at(i);
     let colours: Vec<[u8; 3]> = (0..n).map(at).map(|(x, y)| colour(x, y)).collect();
     let projected: Vec<u8> = (0..n).map(at).map(|(x, y)| prior[y * width + x]).collect();
     let (distance, nearest) = distance_transform(&projected, roi.w, roi.h);
     let span_distance = mouth_span_distance(&projected, roi.w, roi.h, reach as usize);
-    // Spatial priors: teeth only near the models' projection, mouth interior between the
-    // arches' outlines, lips and skin anywhere.
-    let priors: Vec<[f32; 3]> = (0..n)
-        .map(|i| {
-            let teeth = 0.45 * (-distance[i] / reach).exp();
-            let mouth = if projected[i] != 0 {
-                0.2
-            } else {
-                0.45 * (-span_distance[i] / reach).exp()
-            };
-            let other = (1.0 - teeth - mouth).max(0.1);
-            [teeth, mouth, other]
-        })
-        .collect();
+    let priors = spatial_priors(&projected, &distance, &span_distance, reach);
     let mean_luma = (colours.iter().map(|&c| luma(c) as f64).sum::<f64>() / n as f64) as f32;
     if let Some(m) = models
         && (mean_luma as f64) < settings.dark_ratio * m.lit_luma as f64
@@ -86,7 +80,7 @@ pub fn segment_picture(
         return Outcome::Dark;
     }
     let learning = models.is_none();
-    let mut classes: Vec<u8> = if learning {
+    let first: Vec<u8> = if learning {
         initial_classes(
             &colours,
             &projected,
@@ -98,7 +92,53 @@ pub fn segment_picture(
     } else {
         Vec::new()
     };
-    let beta = contrast(&colours, roi.w, roi.h);
+    let classes = cut_rounds(&colours, &priors, first, models, mean_luma, roi, settings);
+    let Some(classes) = classes else {
+        return Outcome::OutOfView;
+    };
+    if !learning {
+        let m = models.as_mut().expect("present");
+        follow_picture(&colours, &classes, roi, m, mean_luma, settings);
+    }
+    Outcome::Labels(picture_labels(&classes, &nearest, roi, width, height))
+}
+
+/// Spatial priors per ROI pixel (teeth, mouth interior, the rest): teeth only near the models'
+/// projection, mouth interior between the arches' outlines, lips and skin anywhere.
+fn spatial_priors(
+    projected: &[u8],
+    distance: &[f32],
+    span_distance: &[f32],
+    reach: f32,
+) -> Vec<[f32; 3]> {
+    (0..projected.len())
+        .map(|i| {
+            let teeth = 0.45 * (-distance[i] / reach).exp();
+            let mouth = if projected[i] != 0 {
+                0.2
+            } else {
+                0.45 * (-span_distance[i] / reach).exp()
+            };
+            let other = (1.0 - teeth - mouth).max(0.1);
+            [teeth, mouth, other]
+        })
+        .collect()
+}
+
+/// The classes after the graph cuts: when `models` is `None`, learned from `classes` (the
+/// first guess) and re-cut for the settings' learning rounds, else one cut with `models`.
+/// `None` when the teeth's colours cannot be learned.
+fn cut_rounds(
+    colours: &[[u8; 3]],
+    priors: &[[f32; 3]],
+    mut classes: Vec<u8>,
+    models: &mut Option<Models>,
+    mean_luma: f32,
+    roi: Roi,
+    settings: &SegmentSettings,
+) -> Option<Vec<u8>> {
+    let learning = models.is_none();
+    let beta = contrast(colours, roi.w, roi.h);
     let rounds = if learning {
         settings.learning_rounds
     } else {
@@ -106,44 +146,60 @@ pub fn segment_picture(
     };
     for _ in 0..rounds.max(1) {
         if learning {
-            match learn(&colours, &classes, settings.min_pixels) {
-                Some(fresh) => {
-                    *models = Some(Models {
-                        lit_luma: mean_luma,
-                        ..fresh
-                    })
-                }
-                None => return Outcome::OutOfView,
-            }
+            let fresh = learn(colours, &classes, settings.min_pixels)?;
+            *models = Some(Models {
+                lit_luma: mean_luma,
+                ..fresh
+            });
         }
         let m = models.as_ref().expect("learned above or before");
-        classes = cut(&colours, &priors, m, roi, beta, settings);
+        classes = cut(colours, priors, m, roi, beta, settings);
     }
-    if !learning {
-        // Each class follows what this picture showed of it, when it showed enough.
-        let edges_out = eroded(&classes, roi.w, roi.h);
-        let m = models.as_mut().expect("present");
-        let rate = settings.learning_rate;
-        for (k, model) in [&mut m.teeth, &mut m.mouth, &mut m.other]
-            .into_iter()
-            .enumerate()
-        {
-            if let Some(fresh) = learn_class(&colours, &edges_out, k as u8, settings.min_pixels) {
-                model.update(&fresh, rate);
-            }
+    Some(classes)
+}
+
+/// Each class's model follows what this picture showed of it, when it showed enough; so does
+/// the lit luma.
+fn follow_picture(
+    colours: &[[u8; 3]],
+    classes: &[u8],
+    roi: Roi,
+    m: &mut Models,
+    mean_luma: f32,
+    settings: &SegmentSettings,
+) {
+    let edges_out = eroded(classes, roi.w, roi.h);
+    let rate = settings.learning_rate;
+    for (k, model) in [&mut m.teeth, &mut m.mouth, &mut m.other]
+        .into_iter()
+        .enumerate()
+    {
+        if let Some(fresh) = learn_class(colours, &edges_out, k as u8, settings.min_pixels) {
+            model.update(&fresh, rate);
         }
-        m.lit_luma += rate * (mean_luma - m.lit_luma);
     }
+    m.lit_luma += rate * (mean_luma - m.lit_luma);
+}
+
+/// The whole picture's label bits from the ROI's classes: teeth take the nearest arch's bit
+/// (`nearest`), the mouth interior MOUTH_BIT, the rest 0.
+fn picture_labels(
+    classes: &[u8],
+    nearest: &[u8],
+    roi: Roi,
+    width: usize,
+    height: usize,
+) -> Vec<u8> {
     let mut labels = vec![0u8; width * height];
-    for i in 0..n {
-        let (x, y) = at(i);
-        labels[y * width + x] = match classes[i] {
+    for (i, &class) in classes.iter().enumerate() {
+        let (x, y) = roi.at(i);
+        labels[y * width + x] = match class {
             0 => nearest[i],
             1 => MOUTH_BIT,
             _ => 0,
         };
     }
-    Outcome::Labels(labels)
+    labels
 }
 
 /// A first guess of the classes, to learn the colour models from. The models' projection
@@ -427,103 +483,10 @@ fn cut(
         .collect()
 }
 
-/// Per pixel, the chamfer distance (3-4, in pixels) to the nearest labelled pixel and that
-/// pixel's label.
-fn distance_transform(labels: &[u8], w: usize, h: usize) -> (Vec<f32>, Vec<u8>) {
-    let mut d: Vec<f32> = labels
-        .iter()
-        .map(|&l| if l != 0 { 0.0 } else { f32::INFINITY })
-        .collect();
-    let mut near = labels.to_vec();
-    let (straight, diagonal) = (1.0f32, std::f32::consts::SQRT_2);
-    let relax = |d: &mut [f32], near: &mut [u8], i: usize, j: usize, step: f32| {
-        if d[j] + step < d[i] {
-            d[i] = d[j] + step;
-            near[i] = near[j];
-        }
-    };
-    for y in 0..h {
-        for x in 0..w {
-            let i = y * w + x;
-            if x > 0 {
-                relax(&mut d, &mut near, i, i - 1, straight);
-            }
-            if y > 0 {
-                relax(&mut d, &mut near, i, i - w, straight);
-                if x > 0 {
-                    relax(&mut d, &mut near, i, i - w - 1, diagonal);
-                }
-                if x + 1 < w {
-                    relax(&mut d, &mut near, i, i - w + 1, diagonal);
-                }
-            }
-        }
-    }
-    for y in (0..h).rev() {
-        for x in (0..w).rev() {
-            let i = y * w + x;
-            if x + 1 < w {
-                relax(&mut d, &mut near, i, i + 1, straight);
-            }
-            if y + 1 < h {
-                relax(&mut d, &mut near, i, i + w, straight);
-                if x + 1 < w {
-                    relax(&mut d, &mut near, i, i + w + 1, diagonal);
-                }
-                if x > 0 {
-                    relax(&mut d, &mut near, i, i + w - 1, diagonal);
-                }
-            }
-        }
-    }
-    for n in &mut near {
-        if *n == 0 {
-            *n = UPPER_BIT;
-        }
-        *n &= UPPER_BIT | LOWER_BIT;
-    }
-    (d, near)
-}
-
-/// Per pixel, how far (rows) it lies outside the span between the arches' outlines in its
-/// column (the outlines' top and bottom taken over `reach` columns either side, so gaps
-/// between crowns do not break it); 0 inside.
-fn mouth_span_distance(labels: &[u8], w: usize, h: usize, reach: usize) -> Vec<f32> {
-    let mut top = vec![usize::MAX; w];
-    let mut bottom = vec![0usize; w];
-    for y in 0..h {
-        for x in 0..w {
-            if labels[y * w + x] != 0 {
-                top[x] = top[x].min(y);
-                bottom[x] = bottom[x].max(y);
-            }
-        }
-    }
-    let mut out = vec![f32::INFINITY; w * h];
-    for x in 0..w {
-        let lo = x.saturating_sub(reach);
-        let hi = (x + reach).min(w - 1);
-        let t = (lo..=hi).map(|k| top[k]).min().unwrap_or(usize::MAX);
-        let b = (lo..=hi).map(|k| bottom[k]).max().unwrap_or(0);
-        if t == usize::MAX {
-            continue;
-        }
-        for y in 0..h {
-            out[y * w + x] = if y < t {
-                (t - y) as f32
-            } else if y > b {
-                (y - b) as f32
-            } else {
-                0.0
-            };
-        }
-    }
-    out
-}
-
 #[cfg(test)]
 mod tests {
     use super::*;
+    use crate::arch::{LOWER_BIT, UPPER_BIT};
 
     /// A picture of a white band (teeth) over a dark gap, inside red lips, on skin; the
     /// prior is the band shifted by two pixels and a little too wide, as a pose a frame

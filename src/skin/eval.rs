@@ -117,10 +117,7 @@ pub fn evaluate(
     // Every subject's own mapping on all its frames, per point set, for single-source
     // retargeting.
     let mut sources: Vec<Vec<Option<SkinModel>>> = vec![vec![None; subjects.len()]; 2];
-    let mut learn_times = Vec::new();
-    let mut learn_frames = 0;
-    let mut predict_time = 0.0;
-    let mut predicted = 0usize;
+    let mut timings = Timings::default();
     let mut scores = Vec::new();
     for (t, target) in subjects.iter().enumerate() {
         progress(&format!(
@@ -130,117 +127,214 @@ pub fn evaluate(
             subjects.len()
         ));
         let ps = set_for(t);
-        let points = &point_sets[ps];
-        let (rest, ..) = target.rest()?;
-        let n = target.frames.len();
-        let all: Vec<usize> = (0..n).collect();
-        // Single subject: first frames learn, the rest test.
-        let cut = ((n as f64 * SINGLE_TRAIN_SHARE) as usize).clamp(1, n - 1);
-        let clock = Instant::now();
-        let own = learn_single(target, Some(points.clone()), &all[..cut], settings)?;
-        learn_times.push(clock.elapsed().as_secs_f64());
-        learn_frames = learn_frames.max(cut);
-        let features: Vec<Vec<f64>> = all
-            .iter()
-            .map(|&i| target.skin_features(points, i))
-            .collect();
-        let clock = Instant::now();
-        let single = score(target, &all[cut..], &|i| {
-            own.predict(&target.skin_features(points, i))
-        });
-        predict_time += clock.elapsed().as_secs_f64();
-        predicted += n - cut;
-        let base = |i: usize| {
-            baseline_jaw(
-                points,
-                &target.neutral.triangles,
-                &target.neutral.positions,
-                &target.skin[i],
-                &rest,
-            )
-        };
-        let single_base = score(target, &all[cut..], &base);
-        // Single sources, retargeted.
-        let mut each = Vec::new();
-        let mut best: Option<(f64, f64, String)> = None;
-        let mut uncalibrated = f64::INFINITY;
-        for (k, src) in subjects.iter().enumerate() {
-            if k == t {
-                continue;
-            }
-            if sources[ps][k].is_none() {
-                let rows: Vec<usize> = (0..src.frames.len()).collect();
-                sources[ps][k] = Some(learn_single(src, Some(points.clone()), &rows, settings)?);
-            }
-            let m = sources[ps][k].as_ref().expect("learned above");
-            let (plain, _) = retarget_to(
-                m,
-                target,
-                &super::retarget::RetargetSettings {
-                    iterations: 0,
-                    ..settings.retarget
-                },
-            )?;
-            let raw = score(target, &all, &|i| plain.predict(&features[i]));
-            uncalibrated = uncalibrated.min(mean(&raw.mm));
-            let (r, _) = retarget_to(m, target, &settings.retarget)?;
-            let sc = score(target, &all, &|i| r.predict(&features[i]));
-            let e = mean(&sc.mm);
-            each.push((src.name.clone(), e));
-            if best.as_ref().is_none_or(|b| e < b.0) {
-                best = Some((e, mean(&sc.bone), src.name.clone()));
-            }
-        }
-        let (retargeted_mm, retargeted_bone_mm, retargeted_from) =
-            best.expect("two subjects or more");
-        // Multi-subject from all the others.
-        let others: Vec<&Subject> = subjects
-            .iter()
-            .enumerate()
-            .filter(|(k, _)| *k != t)
-            .map(|(_, s)| s)
-            .collect();
-        let primary = if t == 0 { 1 } else { 0 };
-        let (multi, _) = learn_multi(
-            &others,
-            Some(points.clone()),
-            sources[ps][primary].as_ref(),
+        let fold = Fold {
+            subjects,
+            t,
+            target,
+            points: &point_sets[ps],
             settings,
-        )?;
-        let (multi, _) = retarget_to(&multi, target, &settings.retarget)?;
-        let multi_sc = score(target, &all, &|i| multi.predict(&features[i]));
-        let base_sc = score(target, &all, &base);
-        let mut series = Series {
-            frames: target.frames.clone(),
-            single: vec![f64::NAN; cut],
-            multi_subject: multi_sc.mm.clone(),
-            baseline: base_sc.mm.clone(),
         };
-        series.single.extend(single.mm.iter().copied());
-        scores.push(SubjectScore {
-            name: target.name.clone(),
-            frames: n,
-            single_mm: mean(&single.mm),
-            single_bone_mm: mean(&single.bone),
-            single_frames: single.mm.len(),
-            single_baseline_mm: mean(&single_base.mm),
-            retargeted_mm,
-            retargeted_bone_mm,
-            retargeted_from,
-            retargeted_each_mm: each,
-            uncalibrated_mm: uncalibrated,
-            multi_subject_mm: mean(&multi_sc.mm),
-            multi_subject_bone_mm: mean(&multi_sc.bone),
-            baseline_mm: mean(&base_sc.mm),
-            baseline_bone_mm: mean(&base_sc.bone),
-            series,
-        });
+        scores.push(score_subject(&fold, &mut sources[ps], &mut timings)?);
     }
     Ok(Evaluation {
         subjects: scores,
-        predict_ms: predict_time * 1e3 / predicted.max(1) as f64,
-        learn_s: mean(&learn_times),
-        learn_frames,
+        predict_ms: timings.predict * 1e3 / timings.predicted.max(1) as f64,
+        learn_s: mean(&timings.learn),
+        learn_frames: timings.learn_frames,
         seconds: started.elapsed().as_secs_f64(),
     })
+}
+
+/// One leave-one-subject-out fold: the subject held out and what its mappings share.
+struct Fold<'a> {
+    subjects: &'a [Subject],
+    /// The index of `target` in `subjects`.
+    t: usize,
+    target: &'a Subject,
+    points: &'a [SkinPoint],
+    settings: &'a SkinSettings,
+}
+
+/// Timings summed over every subject, for the evaluation's averages.
+#[derive(Default)]
+struct Timings {
+    /// Seconds to learn each single-subject mapping.
+    learn: Vec<f64>,
+    /// The most frames a single-subject mapping learned from.
+    learn_frames: usize,
+    /// Seconds spent predicting the single-subject test frames, and how many there were.
+    predict: f64,
+    predicted: usize,
+}
+
+/// The best single other subject's mapping, retargeted, and every source's error.
+struct SourceScores {
+    each: Vec<(String, f64)>,
+    mm: f64,
+    bone_mm: f64,
+    from: String,
+    /// The best source's error without retargeting.
+    uncalibrated: f64,
+}
+
+/// Score one held-out subject against every mapping and the baseline; `sources` caches each
+/// subject's own mapping on the fold's point set.
+fn score_subject(
+    fold: &Fold,
+    sources: &mut [Option<SkinModel>],
+    timings: &mut Timings,
+) -> Result<SubjectScore> {
+    let target = fold.target;
+    let points = fold.points;
+    let (rest, ..) = target.rest()?;
+    let n = target.frames.len();
+    let all: Vec<usize> = (0..n).collect();
+    // Single subject: first frames learn, the rest test.
+    let cut = ((n as f64 * SINGLE_TRAIN_SHARE) as usize).clamp(1, n - 1);
+    let (single, features) = score_single(fold, &all, cut, timings)?;
+    let base = |i: usize| {
+        baseline_jaw(
+            points,
+            &target.neutral.triangles,
+            &target.neutral.positions,
+            &target.skin[i],
+            &rest,
+        )
+    };
+    let single_base = score(target, &all[cut..], &base);
+    let retargeted = score_sources(fold, sources, &all, &features)?;
+    let multi_sc = score_multi(fold, sources, &all, &features)?;
+    let base_sc = score(target, &all, &base);
+    let mut series = Series {
+        frames: target.frames.clone(),
+        single: vec![f64::NAN; cut],
+        multi_subject: multi_sc.mm.clone(),
+        baseline: base_sc.mm.clone(),
+    };
+    series.single.extend(single.mm.iter().copied());
+    Ok(SubjectScore {
+        name: target.name.clone(),
+        frames: n,
+        single_mm: mean(&single.mm),
+        single_bone_mm: mean(&single.bone),
+        single_frames: single.mm.len(),
+        single_baseline_mm: mean(&single_base.mm),
+        retargeted_mm: retargeted.mm,
+        retargeted_bone_mm: retargeted.bone_mm,
+        retargeted_from: retargeted.from,
+        retargeted_each_mm: retargeted.each,
+        uncalibrated_mm: retargeted.uncalibrated,
+        multi_subject_mm: mean(&multi_sc.mm),
+        multi_subject_bone_mm: mean(&multi_sc.bone),
+        baseline_mm: mean(&base_sc.mm),
+        baseline_bone_mm: mean(&base_sc.bone),
+        series,
+    })
+}
+
+/// Learn the target's own mapping on its frames before `cut` and score it on the rest; also
+/// returns the target's skin features on every frame.
+fn score_single(
+    fold: &Fold,
+    all: &[usize],
+    cut: usize,
+    timings: &mut Timings,
+) -> Result<(Scored, Vec<Vec<f64>>)> {
+    let target = fold.target;
+    let points = fold.points;
+    let clock = Instant::now();
+    let own = learn_single(target, Some(points.to_vec()), &all[..cut], fold.settings)?;
+    timings.learn.push(clock.elapsed().as_secs_f64());
+    timings.learn_frames = timings.learn_frames.max(cut);
+    let features: Vec<Vec<f64>> = all
+        .iter()
+        .map(|&i| target.skin_features(points, i))
+        .collect();
+    let predict = |i: usize| own.predict(&target.skin_features(points, i));
+    let clock = Instant::now();
+    let single = score(target, &all[cut..], &predict);
+    timings.predict += clock.elapsed().as_secs_f64();
+    timings.predicted += all.len() - cut;
+    Ok((single, features))
+}
+
+/// Retarget every other subject's own mapping (learned once into `sources`) to the target,
+/// with and without calibration, and score each on every frame.
+fn score_sources(
+    fold: &Fold,
+    sources: &mut [Option<SkinModel>],
+    all: &[usize],
+    features: &[Vec<f64>],
+) -> Result<SourceScores> {
+    let (target, settings) = (fold.target, fold.settings);
+    let mut each = Vec::new();
+    let mut best: Option<(f64, f64, String)> = None;
+    let mut uncalibrated = f64::INFINITY;
+    for (k, src) in fold.subjects.iter().enumerate() {
+        if k == fold.t {
+            continue;
+        }
+        if sources[k].is_none() {
+            let rows: Vec<usize> = (0..src.frames.len()).collect();
+            sources[k] = Some(learn_single(
+                src,
+                Some(fold.points.to_vec()),
+                &rows,
+                settings,
+            )?);
+        }
+        let m = sources[k].as_ref().expect("learned above");
+        let (plain, _) = retarget_to(
+            m,
+            target,
+            &super::retarget::RetargetSettings {
+                iterations: 0,
+                ..settings.retarget
+            },
+        )?;
+        let raw = score(target, all, &|i| plain.predict(&features[i]));
+        uncalibrated = uncalibrated.min(mean(&raw.mm));
+        let (r, _) = retarget_to(m, target, &settings.retarget)?;
+        let sc = score(target, all, &|i| r.predict(&features[i]));
+        let e = mean(&sc.mm);
+        each.push((src.name.clone(), e));
+        if best.as_ref().is_none_or(|b| e < b.0) {
+            best = Some((e, mean(&sc.bone), src.name.clone()));
+        }
+    }
+    let (mm, bone_mm, from) = best.expect("two subjects or more");
+    Ok(SourceScores {
+        each,
+        mm,
+        bone_mm,
+        from,
+        uncalibrated,
+    })
+}
+
+/// Learn the multi-subject mapping of every subject but the target, retarget it to the target
+/// and score it on every frame.
+fn score_multi(
+    fold: &Fold,
+    sources: &[Option<SkinModel>],
+    all: &[usize],
+    features: &[Vec<f64>],
+) -> Result<Scored> {
+    let t = fold.t;
+    let others: Vec<&Subject> = fold
+        .subjects
+        .iter()
+        .enumerate()
+        .filter(|(k, _)| *k != t)
+        .map(|(_, s)| s)
+        .collect();
+    let primary = if t == 0 { 1 } else { 0 };
+    let (multi, _) = learn_multi(
+        &others,
+        Some(fold.points.to_vec()),
+        sources[primary].as_ref(),
+        fold.settings,
+    )?;
+    let (multi, _) = retarget_to(&multi, fold.target, &fold.settings.retarget)?;
+    Ok(score(fold.target, all, &|i| multi.predict(&features[i])))
 }

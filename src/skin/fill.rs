@@ -45,6 +45,44 @@ pub fn fill(
     tracks_path: &Path,
     settings: &RetargetSettings,
 ) -> Result<(TracksJson, FillReport)> {
+    let (subject, teeth) = teeth_subject(face, tracks, tracks_path)?;
+    let chosen = spread_calibration(&subject)?;
+    let Calibration {
+        model: m,
+        report,
+        chosen,
+        left_out,
+    } = calibrate(model, &subject, chosen, settings)?;
+    let (out, skin) = fill_from_skin(&m, &subject, tracks, tracks_path)?;
+    Ok((
+        out,
+        FillReport {
+            teeth_frames: teeth,
+            skin_frames: skin,
+            calibration_frames: chosen.iter().map(|&i| subject.frames[i]).collect(),
+            left_out,
+            retarget: report,
+        },
+    ))
+}
+
+/// The mapping retargeted on the calibration frames it could explain.
+struct Calibration {
+    model: SkinModel,
+    report: RetargetReport,
+    /// The calibration frames, as indices of the subject's frames.
+    chosen: Vec<usize>,
+    /// The frame numbers of the calibration frames left out as outliers.
+    left_out: Vec<u32>,
+}
+
+/// `face` with the jaw poses of the confident frames of `tracks` (and no others), and how many
+/// frames got one.
+fn teeth_subject(
+    face: &Subject,
+    tracks: &TracksJson,
+    tracks_path: &Path,
+) -> Result<(Subject, usize)> {
     let mut subject = face.clone();
     subject.jaw = vec![None; subject.frames.len()];
     let mut teeth = 0;
@@ -65,8 +103,13 @@ pub fn fill(
             "no `ok` frame of the tracks is a frame of the face sequence (their frame numbers must be the capture's)",
         ));
     }
+    Ok((subject, teeth))
+}
+
+/// Calibration frames spread over the motion: farthest-point sampling of the menton's travel
+/// among the frames with a jaw pose.
+fn spread_calibration(subject: &Subject) -> Result<Vec<usize>> {
     let (rest, ..) = subject.rest()?;
-    // Spread the calibration over the motion: farthest-point sampling of the menton's travel.
     let known: Vec<usize> = (0..subject.frames.len())
         .filter(|&i| subject.jaw[i].is_some())
         .collect();
@@ -94,10 +137,43 @@ pub fn fill(
             dist[k] = dist[k].min((menton(i) - menton(known[j])).norm());
         }
     }
-    let (mut m, mut report) = retarget_on(model, &subject, &chosen, settings)?;
-    // A confident frame the tracker got wrong would pull the whole retargeting toward it (and
-    // the farthest-point choice favours such outliers): frames whose teeth pose the
-    // retargeted mapping cannot explain, far beyond the others' misfit, are left out once.
+    Ok(chosen)
+}
+
+/// Retarget `model` on the `chosen` frames, then once more without those it cannot explain.
+///
+/// A confident frame the tracker got wrong would pull the whole retargeting toward it (and
+/// the farthest-point choice favours such outliers): frames whose teeth pose the retargeted
+/// mapping cannot explain, far beyond the others' misfit, are left out once.
+fn calibrate(
+    model: &SkinModel,
+    subject: &Subject,
+    mut chosen: Vec<usize>,
+    settings: &RetargetSettings,
+) -> Result<Calibration> {
+    let (mut m, mut report) = retarget_on(model, subject, &chosen, settings)?;
+    let kept = explained_frames(&m, subject, &chosen);
+    let mut left_out = Vec::new();
+    if kept.len() < chosen.len() && kept.len() >= 2 {
+        left_out = chosen
+            .iter()
+            .filter(|i| !kept.contains(i))
+            .map(|&i| subject.frames[i])
+            .collect();
+        (m, report) = retarget_on(model, subject, &kept, settings)?;
+        chosen = kept;
+    }
+    Ok(Calibration {
+        model: m,
+        report,
+        chosen,
+        left_out,
+    })
+}
+
+/// The `chosen` frames whose teeth pose `m` misses by no more than [`OUTLIER_MM`] or
+/// [`OUTLIER_FACTOR`] times the median miss, whichever is larger.
+fn explained_frames(m: &SkinModel, subject: &Subject, chosen: &[usize]) -> Vec<usize> {
     let misfit: Vec<f64> = chosen
         .iter()
         .map(|&i| {
@@ -107,22 +183,22 @@ pub fn fill(
         })
         .collect();
     let typical = crate::stats::Stats::of(&misfit).median;
-    let kept: Vec<usize> = chosen
+    chosen
         .iter()
         .zip(&misfit)
         .filter(|&(_, &e)| e <= OUTLIER_MM.max(OUTLIER_FACTOR * typical))
         .map(|(&i, _)| i)
-        .collect();
-    let mut left_out = Vec::new();
-    if kept.len() < chosen.len() && kept.len() >= 2 {
-        left_out = chosen
-            .iter()
-            .filter(|i| !kept.contains(i))
-            .map(|&i| subject.frames[i])
-            .collect();
-        (m, report) = retarget_on(model, &subject, &kept, settings)?;
-        chosen = kept;
-    }
+        .collect()
+}
+
+/// `tracks` with the jaw of every unconfident frame predicted by `m` from the skin, each frame
+/// marked with its jaw's source; and how many frames got a jaw from the skin.
+fn fill_from_skin(
+    m: &SkinModel,
+    subject: &Subject,
+    tracks: &TracksJson,
+    tracks_path: &Path,
+) -> Result<(TracksJson, usize)> {
     let mut out = tracks.clone();
     let mut skin = 0;
     for r in &mut out.frames {
@@ -142,14 +218,5 @@ pub fn fill(
         r.jaw_source = Some(JawSource::Skin);
         skin += 1;
     }
-    Ok((
-        out,
-        FillReport {
-            teeth_frames: teeth,
-            skin_frames: skin,
-            calibration_frames: chosen.iter().map(|&i| subject.frames[i]).collect(),
-            left_out,
-            retarget: report,
-        },
-    ))
+    Ok((out, skin))
 }

@@ -9,7 +9,7 @@ use rand::RngExt;
 use super::masks::{self, LipLine};
 use super::{LOWER_LABEL, MOUTH_LABEL, UPPER_LABEL};
 use crate::arch::ArchPoses;
-use crate::energy::raster::render_target;
+use crate::energy::raster::{Target, render_target};
 use crate::geometry::Camera;
 use crate::mesh::Mesh;
 
@@ -65,20 +65,15 @@ pub fn render_colour(
         .max(1.0);
     let lip_px = cam.fx * LIP_HEIGHT_MM / depth;
     let texture = SmoothNoise::new(w, h, 9, rng);
-    let point = |x: usize, y: usize| -> Option<Vector3<f64>> {
-        let inv_z = target.inv_depth[y * w + x] as f64;
-        (inv_z > 0.0).then(|| {
-            let z = 1.0 / inv_z;
-            Vector3::new(
-                (x as f64 - cam.cx) / cam.fx * z,
-                (y as f64 - cam.cy) / cam.fy * z,
-                z,
-            )
-        })
+    let shading = Shading {
+        cam,
+        target: &target,
+        w,
+        h,
+        // Light from just above the lens (a ring light), in camera axes: towards the subject
+        // is +z.
+        to_light: Vector3::new(0.0, -0.35, -1.0).normalize(),
     };
-    // Light from just above the lens (a ring light), in camera axes: towards the subject is +z.
-    let to_light = Vector3::new(0.0, -0.35, -1.0).normalize();
-    let mut rgb = vec![0u8; w * h * 3];
     let mut linear = vec![[0f64; 3]; w * h];
     let mut labels = vec![0u8; w * h];
     for y in 0..h {
@@ -89,51 +84,108 @@ pub fn render_colour(
             let t = texture.at(x, y);
             let colour = if inside && class != 0 {
                 labels[i] = class;
-                let p = point(x, y).expect("a drawn pixel has a depth");
-                let near = |dx: i64, dy: i64| {
-                    let (nx, ny) = (x as i64 + dx, y as i64 + dy);
-                    (nx >= 0 && ny >= 0 && (nx as usize) < w && (ny as usize) < h)
-                        .then_some((nx as usize, ny as usize))
-                        .filter(|&(nx, ny)| target.class[ny * w + nx] == class)
-                        .and_then(|(nx, ny)| point(nx, ny))
-                        .unwrap_or(p)
-                };
-                let du = near(1, 0) - near(-1, 0);
-                let dv = near(0, 1) - near(0, -1);
-                let mut n = du.cross(&dv);
-                if n.norm() < 1e-12 {
-                    n = -p;
-                }
-                let mut n = n.normalize();
-                if n.dot(&p) > 0.0 {
-                    n = -n;
-                }
-                let diffuse = n.dot(&to_light).max(0.0);
-                let half = (to_light - p.normalize()).normalize();
-                let specular = 0.55 * n.dot(&half).max(0.0).powi(40);
-                TEETH.map(|c| c * (1.0 + 0.05 * t) * (0.35 + 0.65 * diffuse) + 255.0 * specular)
+                shading.crown(x, y, class, t)
             } else if inside {
                 labels[i] = MOUTH_LABEL;
-                // Darker towards the middle of the opening, where the throat is.
-                let middle = ((y as f64 - top) / (bottom - top).max(1.0) - 0.5).abs() * 2.0;
-                MOUTH.map(|c| c * (0.75 + 0.35 * middle) * (1.0 + 0.15 * t))
+                mouth_colour(y, top, bottom, t)
             } else {
-                let beyond = if top.is_finite() && bottom.is_finite() && top < bottom {
-                    (top - y as f64).max(y as f64 - bottom)
-                } else {
-                    f64::INFINITY
-                };
-                if beyond < lip_px {
-                    LIP.map(|c| c * (1.0 + 0.08 * t))
-                } else {
-                    SKIN.map(|c| c * (1.0 + 0.06 * t))
-                }
+                face_colour(y, top, bottom, lip_px, t)
             };
             linear[i] = colour;
         }
     }
     // A lens a little out of focus: [1 2 1] / 4 along rows, then columns.
     let linear = blur(&blur(&linear, w, h, 1), w, h, w);
+    let rgb = expose(&linear, exposure, rng);
+    ColourFrame { rgb, labels }
+}
+
+/// What shading a crown's pixel needs: the camera, what it drew, and the light.
+struct Shading<'a> {
+    cam: &'a Camera,
+    target: &'a Target,
+    w: usize,
+    h: usize,
+    /// The unit direction towards the light, in camera axes.
+    to_light: Vector3<f64>,
+}
+
+impl Shading<'_> {
+    /// The point (camera axes) drawn at pixel (x, y), if any.
+    fn point(&self, x: usize, y: usize) -> Option<Vector3<f64>> {
+        let inv_z = self.target.inv_depth[y * self.w + x] as f64;
+        (inv_z > 0.0).then(|| {
+            let z = 1.0 / inv_z;
+            Vector3::new(
+                (x as f64 - self.cam.cx) / self.cam.fx * z,
+                (y as f64 - self.cam.cy) / self.cam.fy * z,
+                z,
+            )
+        })
+    }
+
+    /// The unit normal, facing the camera, at pixel (x, y) showing point `p` of class `class`:
+    /// from the neighbouring pixels of the same class.
+    fn normal(&self, x: usize, y: usize, class: u8, p: Vector3<f64>) -> Vector3<f64> {
+        let (w, h) = (self.w, self.h);
+        let near = |dx: i64, dy: i64| {
+            let (nx, ny) = (x as i64 + dx, y as i64 + dy);
+            (nx >= 0 && ny >= 0 && (nx as usize) < w && (ny as usize) < h)
+                .then_some((nx as usize, ny as usize))
+                .filter(|&(nx, ny)| self.target.class[ny * w + nx] == class)
+                .and_then(|(nx, ny)| self.point(nx, ny))
+                .unwrap_or(p)
+        };
+        let du = near(1, 0) - near(-1, 0);
+        let dv = near(0, 1) - near(0, -1);
+        let mut n = du.cross(&dv);
+        if n.norm() < 1e-12 {
+            n = -p;
+        }
+        let mut n = n.normalize();
+        if n.dot(&p) > 0.0 {
+            n = -n;
+        }
+        n
+    }
+
+    /// A crown's colour at pixel (x, y) of class `class`, texture `t`: diffuse with a
+    /// highlight.
+    fn crown(&self, x: usize, y: usize, class: u8, t: f64) -> [f64; 3] {
+        let p = self.point(x, y).expect("a drawn pixel has a depth");
+        let n = self.normal(x, y, class, p);
+        let diffuse = n.dot(&self.to_light).max(0.0);
+        let half = (self.to_light - p.normalize()).normalize();
+        let specular = 0.55 * n.dot(&half).max(0.0).powi(40);
+        TEETH.map(|c| c * (1.0 + 0.05 * t) * (0.35 + 0.65 * diffuse) + 255.0 * specular)
+    }
+}
+
+/// The mouth interior's colour in row `y` of an opening from `top` to `bottom`, texture `t`:
+/// darker towards the middle of the opening, where the throat is.
+fn mouth_colour(y: usize, top: f64, bottom: f64, t: f64) -> [f64; 3] {
+    let middle = ((y as f64 - top) / (bottom - top).max(1.0) - 0.5).abs() * 2.0;
+    MOUTH.map(|c| c * (0.75 + 0.35 * middle) * (1.0 + 0.15 * t))
+}
+
+/// The colour outside the opening from `top` to `bottom` in row `y`, texture `t`: lip within
+/// `lip_px` of the opening, skin beyond.
+fn face_colour(y: usize, top: f64, bottom: f64, lip_px: f64, t: f64) -> [f64; 3] {
+    let beyond = if top.is_finite() && bottom.is_finite() && top < bottom {
+        (top - y as f64).max(y as f64 - bottom)
+    } else {
+        f64::INFINITY
+    };
+    if beyond < lip_px {
+        LIP.map(|c| c * (1.0 + 0.08 * t))
+    } else {
+        SKIN.map(|c| c * (1.0 + 0.06 * t))
+    }
+}
+
+/// The picture's bytes: the linear colours under `exposure`, with the sensor's noise.
+fn expose(linear: &[[f64; 3]], exposure: Exposure, rng: &mut impl rand::Rng) -> Vec<u8> {
+    let mut rgb = vec![0u8; linear.len() * 3];
     for (i, colour) in linear.iter().enumerate() {
         for k in 0..3 {
             let noise = rng.random_range(-4.0..=4.0);
@@ -141,7 +193,7 @@ pub fn render_colour(
             rgb[i * 3 + k] = v.round().clamp(0.0, 255.0) as u8;
         }
     }
-    ColourFrame { rgb, labels }
+    rgb
 }
 
 /// [1 2 1] / 4 between each pixel and its neighbours `step` apart (1: along rows, the

@@ -13,13 +13,14 @@ use rand::{RngExt, SeedableRng};
 use rand_chacha::ChaCha8Rng;
 use rayon::prelude::*;
 
+use super::face_script::script;
 use crate::anatomy::{JawControls, JawModel, procedural_arch, rest_bite};
 use crate::error::{Error, Result};
 use crate::geometry::{Pose, so3_exp};
 use crate::io::write_json_atomic;
 use crate::mesh::Mesh;
 use crate::mesh::write_obj;
-use crate::skin::format::{CalibrationJson, FACE_FORMAT, FaceFramesJson, FaceJson};
+use crate::skin::format::{FACE_FORMAT, FaceFramesJson, FaceJson};
 
 /// The skin grid: rows from under the chin to the nose, columns from ear to ear.
 const ROWS: usize = 36;
@@ -365,130 +366,6 @@ fn expression_fields(
         })
         .collect();
     [smile, pressed, pucker]
-}
-
-/// The jaw's controls and the expressions' strengths over the sequence: the five calibration
-/// poses (wide open, left, right, forward, backward) in the first 200 frames with a relaxed
-/// face, then random keys eased into one another.
-fn script(frames: u32, rng: &mut ChaCha8Rng) -> (Vec<(JawControls, [f64; 3])>, CalibrationJson) {
-    let calibration_keys: [(u32, JawControls); 12] = [
-        (0, JawControls::default()),
-        (
-            20,
-            JawControls {
-                open: 1.0,
-                lateral: 0.0,
-                protrusion: 0.0,
-            },
-        ),
-        (40, JawControls::default()),
-        (
-            60,
-            JawControls {
-                open: 0.08,
-                lateral: 1.0,
-                protrusion: 0.0,
-            },
-        ),
-        (80, JawControls::default()),
-        (
-            100,
-            JawControls {
-                open: 0.08,
-                lateral: -1.0,
-                protrusion: 0.0,
-            },
-        ),
-        (120, JawControls::default()),
-        (
-            140,
-            JawControls {
-                open: 0.03,
-                lateral: 0.0,
-                protrusion: 1.0,
-            },
-        ),
-        (160, JawControls::default()),
-        // "Backward": the jaw held retruded, the teeth apart (the joint model does not
-        // retrude past the rest bite).
-        (
-            180,
-            JawControls {
-                open: 0.15,
-                lateral: 0.0,
-                protrusion: 0.0,
-            },
-        ),
-        (195, JawControls::default()),
-        (200, JawControls::default()),
-    ];
-    let calibration = CalibrationJson {
-        open: 20,
-        left: 60,
-        right: 100,
-        forward: 140,
-        backward: 180,
-    };
-    let mut jaw_keys: Vec<(u32, JawControls)> = calibration_keys.to_vec();
-    let mut t = 200;
-    while t < frames {
-        t += rng.random_range(8..30);
-        let open = rng.random_range(0.0f64..1.0).powf(1.6);
-        let lateral = rng.random_range(-0.8..0.8) * (1.0 - open * 0.7);
-        let protrusion = rng.random_range(0.0f64..0.8).powi(2);
-        jaw_keys.push((
-            t,
-            JawControls {
-                open,
-                lateral,
-                protrusion,
-            },
-        ));
-    }
-    let mut expr_keys: [Vec<(u32, f64)>; 3] = Default::default();
-    for keys in &mut expr_keys {
-        keys.push((0, 0.0));
-        keys.push((200, 0.0));
-        let mut t = 200;
-        while t < frames {
-            t += rng.random_range(15..60);
-            let on = rng.random_range(0.0..1.0) < 0.45;
-            keys.push((t, if on { rng.random_range(0.3..1.0) } else { 0.0 }));
-        }
-    }
-    let eased = |keys: &[(u32, f64)], f: u32| -> f64 { ease(keys, f, |a, b, e| a + (b - a) * e) };
-    let out = (0..frames)
-        .map(|f| {
-            let c = ease(&jaw_keys, f, |a: JawControls, b: JawControls, e| {
-                JawControls {
-                    open: a.open + (b.open - a.open) * e,
-                    lateral: a.lateral + (b.lateral - a.lateral) * e,
-                    protrusion: a.protrusion + (b.protrusion - a.protrusion) * e,
-                }
-            });
-            let e = [
-                eased(&expr_keys[0], f),
-                eased(&expr_keys[1], f),
-                eased(&expr_keys[2], f),
-            ];
-            (c, e)
-        })
-        .collect();
-    (out, calibration)
-}
-
-/// The value at frame `f` of keys eased (cosine) from one to the next.
-fn ease<T: Copy>(keys: &[(u32, T)], f: u32, lerp: impl Fn(T, T, f64) -> T) -> T {
-    let i = keys.iter().rposition(|k| k.0 <= f).unwrap_or(0);
-    let Some(next) = keys.get(i + 1) else {
-        return keys[i].1;
-    };
-    let x = (f - keys[i].0) as f64 / (next.0 - keys[i].0).max(1) as f64;
-    lerp(
-        keys[i].1,
-        next.1,
-        0.5 - 0.5 * (std::f64::consts::PI * x).cos(),
-    )
 }
 
 fn write_subject(

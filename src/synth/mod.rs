@@ -6,6 +6,7 @@
 pub mod colour;
 pub mod exercise;
 pub mod face;
+mod face_script;
 pub mod mandible;
 pub mod masks;
 mod write;

@@ -8,21 +8,32 @@ use rand::{RngExt, SeedableRng};
 use rand_chacha::ChaCha8Rng;
 use rayon::prelude::*;
 
+use crate::anatomy::JawControls;
 use crate::arch::ArchPoses;
 use crate::capture::json::{
     ArchInitJson, BoiJson, CameraJson, CaptureJson, FramesJson, InitJson, MasksJson, MeshesJson,
 };
 use crate::error::Result;
 use crate::formats::{FrameRecordJson, TracksJson};
+use crate::geometry::Camera;
 use crate::io::{write_atomic, write_json_atomic};
 use crate::mesh::write_obj;
 
 use super::colour::{Exposure, render_colour};
 use super::{
-    CameraStats, LOWER_LABEL, MOUTH_LABEL, MaskKind, Session, SynthOptions, SynthReport,
-    UPPER_LABEL, encode_png, encode_png_rgb, render_mask,
+    CameraStats, LOWER_LABEL, MOUTH_LABEL, MaskKind, RenderedMask, Session, SynthOptions,
+    SynthReport, UPPER_LABEL, encode_png, encode_png_rgb, render_mask,
 };
 
+/// One frame as filmed: its number, the true poses and controls, and each mask camera's mask.
+struct FilmedFrame {
+    index: u32,
+    poses: ArchPoses,
+    controls: JawControls,
+    stats: Vec<RenderedMask>,
+}
+
+/// Writes the whole capture into `dir` and reports what it contains.
 pub(super) fn write_capture(
     dir: &Path,
     s: &Session,
@@ -30,11 +41,37 @@ pub(super) fn write_capture(
     progress: &(dyn Fn() + Sync),
     started: Instant,
 ) -> Result<SynthReport> {
+    write_json_atomic(&dir.join("capture.json"), &capture_json(s, opts))?;
+    write_cameras(dir, s, opts)?;
+    write_obj(&s.upper, &dir.join("meshes/upper.obj"))?;
+    write_obj(&s.lower, &dir.join("meshes/lower.obj"))?;
+    write_obj(&s.mandible, &dir.join("meshes/mandible.obj"))?;
+
+    let frames: Vec<FilmedFrame> = (0..opts.frames)
+        .into_par_iter()
+        .map(|index| -> Result<_> {
+            let frame = film_frame(dir, s, opts, index)?;
+            progress();
+            Ok(frame)
+        })
+        .collect::<Result<_>>()?;
+
+    write_ground_truth(dir, &frames)?;
+    let mut report = motion_report(s, opts, &frames);
+    for (c, cam) in s.mask_cameras.iter().enumerate() {
+        report.cameras.push(camera_stats(c, cam, opts, &frames));
+    }
+    report.seconds = started.elapsed().as_secs_f64();
+    Ok(report)
+}
+
+/// The capture's capture.json: its cameras, frames, meshes, boi group and mask labels.
+fn capture_json(s: &Session, opts: &SynthOptions) -> CaptureJson {
     let names: Vec<String> = s.cameras.iter().map(|(c, _)| c.name.clone()).collect();
     let mouth = opts.writes_mouth().then_some(MOUTH_LABEL as i64);
-    let capture = CaptureJson {
+    CaptureJson {
         format: crate::capture::json::CAPTURE_FORMAT.into(),
-        cameras: names.clone(),
+        cameras: names,
         frames: FramesJson {
             first: 0,
             count: opts.frames,
@@ -64,8 +101,11 @@ pub(super) fn write_capture(
                 mouth,
             },
         },
-    };
-    write_json_atomic(&dir.join("capture.json"), &capture)?;
+    }
+}
+
+/// Each camera's file: as read, or with the lens asked for in place of its own.
+fn write_cameras(dir: &Path, s: &Session, opts: &SynthOptions) -> Result<()> {
     for (cam, json) in &s.cameras {
         let path = dir.join("cameras").join(format!("{}.json", cam.name));
         match opts.distortion {
@@ -79,61 +119,77 @@ pub(super) fn write_capture(
             }
         }
     }
-    write_obj(&s.upper, &dir.join("meshes/upper.obj"))?;
-    write_obj(&s.lower, &dir.join("meshes/lower.obj"))?;
-    write_obj(&s.mandible, &dir.join("meshes/mandible.obj"))?;
+    Ok(())
+}
 
-    let frames: Vec<_> = (0..opts.frames)
-        .into_par_iter()
-        .map(|index| -> Result<_> {
-            let controls = s.controls(index, opts);
-            let upper = s.world_from_upper(index);
-            let jaw = s.jaw.jaw_pose(&controls);
-            let poses = ArchPoses {
-                upper,
-                lower: upper.compose(&jaw),
-            };
-            let show = s.lip_show(index, opts);
-            let mut stats = Vec::with_capacity(s.mask_cameras.len());
-            for (c, cam) in s.mask_cameras.iter().enumerate() {
-                if opts.no_masks {
-                    break;
-                }
-                // Persistent errors: the same draws every frame (per camera).
-                let drawn_at = if opts.persistent_noise {
-                    0
-                } else {
-                    index as u64
-                };
-                let mut rng = ChaCha8Rng::seed_from_u64(
-                    opts.seed ^ (drawn_at << 8 | c as u64).wrapping_mul(0x9E37_79B9_7F4A_7C15),
-                );
-                let m = render_mask(s, cam, &poses, show, opts, &mut rng);
-                if let Some(png) = &m.png {
-                    write_atomic(
-                        &dir.join("masks")
-                            .join(&cam.name)
-                            .join(format!("{index:06}.png")),
-                        png,
-                    )?;
-                }
-                stats.push(m);
-            }
-            if opts.images {
-                write_colour(dir, s, opts, index, &poses, show)?;
-            }
-            progress();
-            Ok((index, poses, controls, stats))
-        })
-        .collect::<Result<_>>()?;
+/// One frame's true poses, its masks (and colour pictures when asked for) written out.
+fn film_frame(dir: &Path, s: &Session, opts: &SynthOptions, index: u32) -> Result<FilmedFrame> {
+    let controls = s.controls(index, opts);
+    let upper = s.world_from_upper(index);
+    let jaw = s.jaw.jaw_pose(&controls);
+    let poses = ArchPoses {
+        upper,
+        lower: upper.compose(&jaw),
+    };
+    let show = s.lip_show(index, opts);
+    let stats = write_masks(dir, s, opts, index, &poses, show)?;
+    if opts.images {
+        write_colour(dir, s, opts, index, &poses, show)?;
+    }
+    Ok(FilmedFrame {
+        index,
+        poses,
+        controls,
+        stats,
+    })
+}
 
+/// One frame's mask per mask camera (none with `no_masks`), written where one was drawn.
+fn write_masks(
+    dir: &Path,
+    s: &Session,
+    opts: &SynthOptions,
+    index: u32,
+    poses: &ArchPoses,
+    show: [f64; 2],
+) -> Result<Vec<RenderedMask>> {
+    let mut stats = Vec::with_capacity(s.mask_cameras.len());
+    for (c, cam) in s.mask_cameras.iter().enumerate() {
+        if opts.no_masks {
+            break;
+        }
+        // Persistent errors: the same draws every frame (per camera).
+        let drawn_at = if opts.persistent_noise {
+            0
+        } else {
+            index as u64
+        };
+        let mut rng = ChaCha8Rng::seed_from_u64(
+            opts.seed ^ (drawn_at << 8 | c as u64).wrapping_mul(0x9E37_79B9_7F4A_7C15),
+        );
+        let m = render_mask(s, cam, poses, show, opts, &mut rng);
+        if let Some(png) = &m.png {
+            write_atomic(
+                &dir.join("masks")
+                    .join(&cam.name)
+                    .join(format!("{index:06}.png")),
+                png,
+            )?;
+        }
+        stats.push(m);
+    }
+    Ok(stats)
+}
+
+/// The true poses of every frame (gt/poses.json) and the first frame's as init.json.
+fn write_ground_truth(dir: &Path, frames: &[FilmedFrame]) -> Result<()> {
     let records: Vec<FrameRecordJson> = frames
         .iter()
-        .map(|(index, poses, _, _)| FrameRecordJson {
-            frame: *index,
-            upper: (&poses.upper).into(),
-            lower: (&poses.lower).into(),
-            jaw: Some((&poses.jaw()).into()),
+        .map(|f| FrameRecordJson {
+            frame: f.index,
+            upper: (&f.poses.upper).into(),
+            lower: (&f.poses.lower).into(),
+            jaw: Some((&f.poses.jaw()).into()),
             energy: None,
             area_error: None,
             status: None,
@@ -148,15 +204,18 @@ pub(super) fn write_capture(
             frames: records,
         },
     )?;
-    let first = &frames[0].1;
+    let first = &frames[0].poses;
     write_json_atomic(
         &dir.join("init.json"),
         &InitJson {
             upper: ArchInitJson::Pose((&first.upper).into()),
             lower: ArchInitJson::Pose((&first.lower).into()),
         },
-    )?;
+    )
+}
 
+/// The report's counts and the extremes of the jaw's motion, before the cameras' statistics.
+fn motion_report(s: &Session, opts: &SynthOptions, frames: &[FilmedFrame]) -> SynthReport {
     let rest_incisor = s.jaw.rest.transform_point(&s.lower_incisor);
     let mut report = SynthReport {
         frames: opts.frames,
@@ -169,45 +228,51 @@ pub(super) fn write_capture(
         max_condylar_travel_mm: 0.0,
         seconds: 0.0,
     };
-    for (_, poses, controls, _) in &frames {
-        let d = poses.jaw().transform_point(&s.lower_incisor) - rest_incisor;
+    for f in frames {
+        let d = f.poses.jaw().transform_point(&s.lower_incisor) - rest_incisor;
         report.max_opening_mm = report.max_opening_mm.max(-d.y);
         report.lateral_mm = [report.lateral_mm[0].min(d.x), report.lateral_mm[1].max(d.x)];
         report.max_protrusion_mm = report.max_protrusion_mm.max(d.z);
-        let (sl, sr, _) = s.jaw.joint_state(controls);
+        let (sl, sr, _) = s.jaw.joint_state(&f.controls);
         report.max_condylar_travel_mm = report.max_condylar_travel_mm.max(sl.max(sr));
     }
-    for (c, cam) in s.mask_cameras.iter().enumerate() {
-        let mut with_mask = 0;
-        let mut mask = [0u64; 2];
-        let mut mouth = 0u64;
-        let mut alone = [0u64; 2];
-        for (_, _, _, stats) in &frames {
-            let Some(m) = stats.get(c) else { continue };
-            with_mask += m.png.is_some() as u32;
-            mouth += m.mouth_pixels;
-            for k in 0..2 {
-                mask[k] += m.mask_pixels[k];
-                alone[k] += m.alone_pixels[k];
-            }
+    report
+}
+
+/// Mask camera `c`'s statistics over all frames.
+fn camera_stats(
+    c: usize,
+    cam: &Camera,
+    opts: &SynthOptions,
+    frames: &[FilmedFrame],
+) -> CameraStats {
+    let mut with_mask = 0;
+    let mut mask = [0u64; 2];
+    let mut mouth = 0u64;
+    let mut alone = [0u64; 2];
+    for f in frames {
+        let Some(m) = f.stats.get(c) else { continue };
+        with_mask += m.png.is_some() as u32;
+        mouth += m.mouth_pixels;
+        for k in 0..2 {
+            mask[k] += m.mask_pixels[k];
+            alone[k] += m.alone_pixels[k];
         }
-        report.cameras.push(CameraStats {
-            name: cam.name.clone(),
-            mask_size: [cam.width, cam.height],
-            frames_with_mask: with_mask,
-            mean_mask_pixels: mask.map(|m| m as f64 / opts.frames as f64),
-            mean_mouth_pixels: mouth as f64 / opts.frames as f64,
-            visible_share: [0, 1].map(|k| {
-                if alone[k] == 0 {
-                    0.0
-                } else {
-                    mask[k] as f64 / alone[k] as f64
-                }
-            }),
-        });
     }
-    report.seconds = started.elapsed().as_secs_f64();
-    Ok(report)
+    CameraStats {
+        name: cam.name.clone(),
+        mask_size: [cam.width, cam.height],
+        frames_with_mask: with_mask,
+        mean_mask_pixels: mask.map(|m| m as f64 / opts.frames as f64),
+        mean_mouth_pixels: mouth as f64 / opts.frames as f64,
+        visible_share: [0, 1].map(|k| {
+            if alone[k] == 0 {
+                0.0
+            } else {
+                mask[k] as f64 / alone[k] as f64
+            }
+        }),
+    }
 }
 
 /// One frame's colour pictures and their true labels, per camera.

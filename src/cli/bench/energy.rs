@@ -6,7 +6,7 @@ use std::time::{Duration, Instant};
 
 use anyhow::Context;
 use jawtrack::arch::{Arch, ArchPoses};
-use jawtrack::capture::{Capture, OpenOptions};
+use jawtrack::capture::{Capture, FrameMasks, OpenOptions};
 use jawtrack::energy::gpu::GpuEnergy;
 use jawtrack::energy::{CpuEnergy, EnergyEngine, Region, Scene};
 use jawtrack::synth::{Preset, SynthOptions, generate};
@@ -75,20 +75,44 @@ fn time(engine: &dyn EnergyEngine, batch: &[ArchPoses], seconds: f64) -> anyhow:
     Ok(started.elapsed().as_secs_f64() / (runs * batch.len()) as f64)
 }
 
+/// A mesh case: its name, scan folder, how the arches are simplified at load, lens.
+type Case<'a> = (
+    String,
+    Option<&'a Path>,
+    OpenOptions,
+    Option<jawtrack::geometry::Distortion>,
+);
+
+/// A backend to time: its label, the region it evaluates and the engine.
+type Engine = (String, Region, Box<dyn EnergyEngine>);
+
 pub fn energy(a: EnergyArgs) -> anyhow::Result<()> {
     let tmp = tempfile::tempdir()?;
-    // (name, scan folder, how the arches are simplified at load, lens)
+    let cases = mesh_cases(&a);
+    let mut report = Report {
+        machine: format!("{} CPU threads", rayon::current_num_threads()),
+        adapter: None,
+        rows: Vec::new(),
+    };
+    for case in cases {
+        measure_case(&a, tmp.path(), case, &mut report)?;
+    }
+    if a.json {
+        println!("{}", serde_json::to_string_pretty(&report)?);
+    } else {
+        print_table(&report);
+    }
+    Ok(())
+}
+
+/// The procedural arch (with and without a lens), then the real scans in full, at the default
+/// simplification and simplified to `a.simplified` triangles when they are present.
+fn mesh_cases(a: &EnergyArgs) -> Vec<Case<'_>> {
     let full = OpenOptions {
         simplify_mm: 0.0,
         ..OpenOptions::default()
     };
     let lens = Some(jawtrack::synth::BARREL_LENS);
-    type Case<'a> = (
-        String,
-        Option<&'a Path>,
-        OpenOptions,
-        Option<jawtrack::geometry::Distortion>,
-    );
     let mut cases: Vec<Case> = vec![
         ("procedural".into(), None, full, None),
         ("procedural, barrel lens".into(), None, full, lens),
@@ -114,123 +138,156 @@ pub fn energy(a: EnergyArgs) -> anyhow::Result<()> {
     } else {
         eprintln!("no scans at {}: procedural arch only", a.scans.display());
     }
-    let mut report = Report {
-        machine: format!("{} CPU threads", rayon::current_num_threads()),
-        adapter: None,
-        rows: Vec::new(),
-    };
-    for (name, meshes, open, distortion) in cases {
-        let dir = tmp
-            .path()
-            .join(match (meshes.is_some(), distortion.is_some()) {
-                (true, _) => "scan",
-                (false, false) => "procedural",
-                (false, true) => "procedural-lens",
+    cases
+}
+
+/// Times every backend asked for on one mesh case and adds its rows to `report`.
+fn measure_case(
+    a: &EnergyArgs,
+    tmp: &Path,
+    case: Case<'_>,
+    report: &mut Report,
+) -> anyhow::Result<()> {
+    let (name, meshes, open, distortion) = case;
+    let capture = open_capture(tmp, meshes, open, distortion)?;
+    let masks = capture.load_masks(3)?;
+    let truth = capture
+        .gt_poses(3)
+        .context("benchmark capture without ground truth")?;
+    let batch = candidates(&truth, a.batch);
+    let scene = Scene::from_capture(&capture);
+    let triangles = capture.lower().triangles.len();
+    let mut engines = backends_to_time(&scene, &a.backends, &mut report.adapter)?;
+    check_agreement(&mut engines, &masks, &batch)?;
+    for (label, region, engine) in &engines {
+        for n in [1, a.batch] {
+            let s = time(engine.as_ref(), &batch[..n], a.seconds)?;
+            eprintln!(
+                "{name}: {label} {} batch {n}: {:.3} ms",
+                region.name(),
+                s * 1e3
+            );
+            report.rows.push(Row {
+                mesh: name.clone(),
+                triangles,
+                backend: label.clone(),
+                region: region.name().to_string(),
+                batch: n,
+                ms_per_evaluation: s * 1e3,
+                evaluations_per_second: 1.0 / s,
             });
-        if !dir.exists() {
-            let opts = SynthOptions {
-                frames: 6,
-                preset: Preset::Realistic,
-                meshes: meshes.map(Path::to_path_buf),
-                distortion,
-                ..SynthOptions::default()
-            };
-            generate(&dir, &opts, &|| {}).context("synthesising the benchmark capture")?;
-        }
-        let capture = Capture::open_with(&dir, open)?;
-        let masks = capture.load_masks(3)?;
-        let truth = capture
-            .gt_poses(3)
-            .context("benchmark capture without ground truth")?;
-        let batch = candidates(&truth, a.batch);
-        let scene = Scene::from_capture(&capture);
-        let triangles = capture.lower().triangles.len();
-        let mut engines: Vec<(String, Region, Box<dyn EnergyEngine>)> = Vec::new();
-        let want = |b: &str| a.backends.iter().any(|x| x == b);
-        for region in [Region::Relevant, Region::Footprint, Region::FullFrame] {
-            if want("cpu") {
-                engines.push((
-                    "cpu".into(),
-                    region,
-                    Box::new(CpuEnergy::with_region(scene.clone(), region)),
-                ));
-            }
-            // The GPU engine draws the footprint for `Energy`.
-            if want("gpu") && region != Region::Relevant {
-                match GpuEnergy::new(scene.clone(), region) {
-                    Ok(g) => {
-                        report.adapter = Some(g.context().describe());
-                        engines.push(("gpu".into(), region, Box::new(g)));
-                    }
-                    Err(e) => eprintln!("gpu: {e}"),
-                }
-            }
-        }
-        if want("readback") {
-            match GpuEnergy::readback_baseline(scene.clone()) {
-                Ok(g) => engines.push(("readback".into(), Region::FullFrame, Box::new(g))),
-                Err(e) => eprintln!("readback: {e}"),
-            }
-        }
-        anyhow::ensure!(!engines.is_empty(), "no backend to time");
-        // Every backend must agree with the first before it is timed (within a few pixels:
-        // see tests/gpu_energy.rs).
-        let reference = engines[0].2.as_mut();
-        reference.set_frame(&masks)?;
-        let expected = reference.evaluate(Arch::Lower, &batch[..1])?[0].total(0.4);
-        for (label, region, engine) in &mut engines {
-            engine.set_frame(&masks)?;
-            let got = engine.evaluate(Arch::Lower, &batch[..1])?[0].total(0.4);
-            anyhow::ensure!(
-                (got - expected).abs() <= 5.0,
-                "{label} {} energy {got} differs from the CPU reference's {expected}",
-                region.name()
-            );
-        }
-        for (label, region, engine) in &engines {
-            for n in [1, a.batch] {
-                let s = time(engine.as_ref(), &batch[..n], a.seconds)?;
-                eprintln!(
-                    "{name}: {label} {} batch {n}: {:.3} ms",
-                    region.name(),
-                    s * 1e3
-                );
-                report.rows.push(Row {
-                    mesh: name.clone(),
-                    triangles,
-                    backend: label.clone(),
-                    region: region.name().to_string(),
-                    batch: n,
-                    ms_per_evaluation: s * 1e3,
-                    evaluations_per_second: 1.0 / s,
-                });
-            }
-        }
-    }
-    if a.json {
-        println!("{}", serde_json::to_string_pretty(&report)?);
-    } else {
-        println!(
-            "energy of one arch, three cameras, 960x540 masks; {}; adapter: {}",
-            report.machine,
-            report.adapter.as_deref().unwrap_or("none")
-        );
-        println!(
-            "{:<22} {:>9} {:<9} {:<14} {:>5} {:>11} {:>10}",
-            "mesh", "triangles", "backend", "region", "batch", "ms/eval", "evals/s"
-        );
-        for r in &report.rows {
-            println!(
-                "{:<22} {:>9} {:<9} {:<14} {:>5} {:>11.3} {:>10.1}",
-                r.mesh,
-                r.triangles,
-                r.backend,
-                r.region,
-                r.batch,
-                r.ms_per_evaluation,
-                r.evaluations_per_second
-            );
         }
     }
     Ok(())
+}
+
+/// Opens the synthetic capture of a mesh case, synthesising it in `tmp` the first time its
+/// kind of mesh is asked for.
+fn open_capture(
+    tmp: &Path,
+    meshes: Option<&Path>,
+    open: OpenOptions,
+    distortion: Option<jawtrack::geometry::Distortion>,
+) -> anyhow::Result<Capture> {
+    let dir = tmp.join(match (meshes.is_some(), distortion.is_some()) {
+        (true, _) => "scan",
+        (false, false) => "procedural",
+        (false, true) => "procedural-lens",
+    });
+    if !dir.exists() {
+        let opts = SynthOptions {
+            frames: 6,
+            preset: Preset::Realistic,
+            meshes: meshes.map(Path::to_path_buf),
+            distortion,
+            ..SynthOptions::default()
+        };
+        generate(&dir, &opts, &|| {}).context("synthesising the benchmark capture")?;
+    }
+    Ok(Capture::open_with(&dir, open)?)
+}
+
+/// The engines of the backends in `backends`, one per region each supports; a GPU engine
+/// records its adapter in `adapter`.
+fn backends_to_time(
+    scene: &Scene,
+    backends: &[String],
+    adapter: &mut Option<String>,
+) -> anyhow::Result<Vec<Engine>> {
+    let mut engines: Vec<Engine> = Vec::new();
+    let want = |b: &str| backends.iter().any(|x| x == b);
+    for region in [Region::Relevant, Region::Footprint, Region::FullFrame] {
+        if want("cpu") {
+            engines.push((
+                "cpu".into(),
+                region,
+                Box::new(CpuEnergy::with_region(scene.clone(), region)),
+            ));
+        }
+        // The GPU engine draws the footprint for `Energy`.
+        if want("gpu") && region != Region::Relevant {
+            match GpuEnergy::new(scene.clone(), region) {
+                Ok(g) => {
+                    *adapter = Some(g.context().describe());
+                    engines.push(("gpu".into(), region, Box::new(g)));
+                }
+                Err(e) => eprintln!("gpu: {e}"),
+            }
+        }
+    }
+    if want("readback") {
+        match GpuEnergy::readback_baseline(scene.clone()) {
+            Ok(g) => engines.push(("readback".into(), Region::FullFrame, Box::new(g))),
+            Err(e) => eprintln!("readback: {e}"),
+        }
+    }
+    anyhow::ensure!(!engines.is_empty(), "no backend to time");
+    Ok(engines)
+}
+
+/// Sets every engine to `masks` and checks each agrees with the first on one candidate before
+/// it is timed (within a few pixels: see tests/gpu_energy.rs).
+fn check_agreement(
+    engines: &mut [Engine],
+    masks: &FrameMasks,
+    batch: &[ArchPoses],
+) -> anyhow::Result<()> {
+    let reference = engines[0].2.as_mut();
+    reference.set_frame(masks)?;
+    let expected = reference.evaluate(Arch::Lower, &batch[..1])?[0].total(0.4);
+    for (label, region, engine) in engines.iter_mut() {
+        engine.set_frame(masks)?;
+        let got = engine.evaluate(Arch::Lower, &batch[..1])?[0].total(0.4);
+        anyhow::ensure!(
+            (got - expected).abs() <= 5.0,
+            "{label} {} energy {got} differs from the CPU reference's {expected}",
+            region.name()
+        );
+    }
+    Ok(())
+}
+
+/// Prints the report as a table, one row per mesh, backend, region and batch size.
+fn print_table(report: &Report) {
+    println!(
+        "energy of one arch, three cameras, 960x540 masks; {}; adapter: {}",
+        report.machine,
+        report.adapter.as_deref().unwrap_or("none")
+    );
+    println!(
+        "{:<22} {:>9} {:<9} {:<14} {:>5} {:>11} {:>10}",
+        "mesh", "triangles", "backend", "region", "batch", "ms/eval", "evals/s"
+    );
+    for r in &report.rows {
+        println!(
+            "{:<22} {:>9} {:<9} {:<14} {:>5} {:>11.3} {:>10.1}",
+            r.mesh,
+            r.triangles,
+            r.backend,
+            r.region,
+            r.batch,
+            r.ms_per_evaluation,
+            r.evaluations_per_second
+        );
+    }
 }

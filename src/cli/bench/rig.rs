@@ -1,11 +1,11 @@
 //! `jawtrack bench rig`: the rig's accuracy and speed goals on synthetic TMJ motion.
 
-use std::path::PathBuf;
+use std::path::{Path, PathBuf};
 use std::time::Instant;
 
 use anyhow::Context;
 use jawtrack::anatomy::MeshMetric;
-use jawtrack::formats::read_jaw_poses;
+use jawtrack::formats::{JawPoses, read_jaw_poses};
 use jawtrack::rig::{JawRig, RigSettings};
 use jawtrack::synth::{SynthOptions, generate};
 use rand::SeedableRng;
@@ -72,42 +72,10 @@ struct AdaptRow {
 
 pub fn rig(a: RigArgs) -> anyhow::Result<()> {
     let dir = tempfile::tempdir().context("creating a temporary folder")?;
-    let capture = dir.path().join("motion");
-    let opts = SynthOptions {
-        frames: a.frames,
-        seed: a.seed,
-        meshes: a.meshes.clone(),
-        no_masks: true,
-        ..Default::default()
-    };
-    let (poses_path, mesh_path) = match (&a.poses, &a.mesh) {
-        (Some(p), Some(m)) => (p.clone(), m.clone()),
-        _ => {
-            generate(&capture, &opts, &|| {}).context("synthesising the motion")?;
-            (
-                capture.join("gt/poses.json"),
-                capture.join("meshes/mandible.obj"),
-            )
-        }
-    };
+    let (poses_path, mesh_path) = motion_files(&a, dir.path())?;
     let (mandible, metric) = crate::cli::args::load_mesh(&mesh_path)?;
-
-    let t = Instant::now();
-    let poses = read_jaw_poses(&poses_path)?;
-    let coords = jawtrack::anatomy::Coordinates::for_mesh(&metric);
-    let vectors: Vec<_> = poses.poses.iter().map(|p| coords.vector(p)).collect();
-    let extraction_ms = t.elapsed().as_secs_f64() * 1e3;
-    std::hint::black_box(vectors);
-
-    let mut settings = RigSettings::default();
-    settings.network.seed = a.seed;
-    settings.mode.seed = a.seed;
-    settings.modes.seed = a.seed;
-    settings.couplings.seed = a.seed;
-    settings.paper = true;
-    let rig = crate::cli::run::with_progress("learning the rig", |progress| {
-        JawRig::learn(&poses.poses, &metric, &settings, progress)
-    })?;
+    let (poses, extraction_ms) = extract_poses(&poses_path, &metric)?;
+    let rig = learn_rig(&poses.poses, &metric, a.seed)?;
     let (ik_ms, ik_residual) = time_ik(&rig, &metric, a.ik_queries, a.seed);
     let eval = jawtrack::rig::eval::report(&rig, &poses.poses, &metric, a.samples, a.seed, true)?;
     if let Some(p) = &a.plots {
@@ -143,6 +111,66 @@ pub fn rig(a: RigArgs) -> anyhow::Result<()> {
         println!("{}", serde_json::to_string_pretty(&report)?);
         return Ok(());
     }
+    print_report(&a, &report, &metric);
+    Ok(())
+}
+
+/// The poses file and mandible mesh to learn from: `--poses` and `--mesh`, or synthetic TMJ
+/// motion written to `dir`.
+fn motion_files(a: &RigArgs, dir: &Path) -> anyhow::Result<(PathBuf, PathBuf)> {
+    let capture = dir.join("motion");
+    let opts = SynthOptions {
+        frames: a.frames,
+        seed: a.seed,
+        meshes: a.meshes.clone(),
+        no_masks: true,
+        ..Default::default()
+    };
+    Ok(match (&a.poses, &a.mesh) {
+        (Some(p), Some(m)) => (p.clone(), m.clone()),
+        _ => {
+            generate(&capture, &opts, &|| {}).context("synthesising the motion")?;
+            (
+                capture.join("gt/poses.json"),
+                capture.join("meshes/mandible.obj"),
+            )
+        }
+    })
+}
+
+/// Reads the jaw poses and takes the se(3) log of each: the poses and the time it took (ms).
+fn extract_poses(path: &Path, metric: &MeshMetric) -> anyhow::Result<(JawPoses, f64)> {
+    let t = Instant::now();
+    let poses = read_jaw_poses(path)?;
+    let coords = jawtrack::anatomy::Coordinates::for_mesh(metric);
+    let vectors: Vec<_> = poses.poses.iter().map(|p| coords.vector(p)).collect();
+    let extraction_ms = t.elapsed().as_secs_f64() * 1e3;
+    std::hint::black_box(vectors);
+    Ok((poses, extraction_ms))
+}
+
+/// Learns the rig from the poses, the paper's networks included, every network seeded with
+/// `seed`.
+fn learn_rig(
+    poses: &[jawtrack::geometry::Pose],
+    metric: &MeshMetric,
+    seed: u64,
+) -> anyhow::Result<JawRig> {
+    let mut settings = RigSettings::default();
+    settings.network.seed = seed;
+    settings.mode.seed = seed;
+    settings.modes.seed = seed;
+    settings.couplings.seed = seed;
+    settings.paper = true;
+    let rig = crate::cli::run::with_progress("learning the rig", |progress| {
+        JawRig::learn(poses, metric, &settings, progress)
+    })?;
+    Ok(rig)
+}
+
+/// Prints the bench's figures: timings, the rig's evaluation, the comparison of rigs and the
+/// adaptation to a second subject when there is one.
+fn print_report(a: &RigArgs, report: &RigBench, metric: &MeshMetric) {
     let source = match &a.poses {
         Some(p) => p.display().to_string(),
         None => format!("synthetic TMJ motion (seed {})", a.seed),
@@ -166,7 +194,7 @@ pub fn rig(a: RigArgs) -> anyhow::Result<()> {
     println!();
     crate::cli::report::rig_compare(report.poses, metric.vertex_count(), &report.compare);
     if report.adaptation.is_empty() {
-        return Ok(());
+        return;
     }
     println!();
     println!(
@@ -186,7 +214,6 @@ pub fn rig(a: RigArgs) -> anyhow::Result<()> {
             r.front_weighted_mm.mean
         );
     }
-    Ok(())
 }
 
 /// IK queries towards targets the rig can reach (a mesh vertex under a random valid pose),

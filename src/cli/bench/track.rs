@@ -1,14 +1,14 @@
 //! `jawtrack bench track`: synthetic captures tracked and compared with the energy's floor.
 
-use std::path::PathBuf;
+use std::path::{Path, PathBuf};
 
 use anyhow::Context;
 use jawtrack::arch::ArchPoses;
 use jawtrack::capture::Capture;
-use jawtrack::energy::{Region, Scene};
+use jawtrack::energy::{Region, Scene, Weights};
 use jawtrack::synth::{SynthOptions, generate};
-use jawtrack::track::SessionOptions;
 use jawtrack::track::floor::{FloorCheck, FloorSummary, FloorTally};
+use jawtrack::track::{SessionOptions, Summary, TrackSettings};
 
 use crate::cli::args::{EnergyArg, JointArg, MaskKindArg, PresetArg, name_of};
 
@@ -86,155 +86,216 @@ struct TrackRow {
     summary: FloorSummary,
 }
 
+/// What every capture of the bench is tracked and measured with.
+struct Bench<'a> {
+    args: &'a TrackArgs,
+    tmp: &'a Path,
+    settings: &'a TrackSettings,
+    weights: &'a Weights,
+}
+
 pub fn track(a: TrackArgs) -> anyhow::Result<()> {
     let tmp = tempfile::tempdir()?;
     let settings = crate::cli::args::track_settings(a.settings.as_deref(), a.energy)?;
     let weights = settings.search.weights();
+    let bench = Bench {
+        args: &a,
+        tmp: tmp.path(),
+        settings: &settings,
+        weights: &weights,
+    };
     let mut rows = Vec::new();
     for (preset, label) in a
         .presets
         .iter()
         .flat_map(|p| a.mouth.iter().map(move |m| (p, *m)))
     {
-        let mut labelled = false;
-        let mut tally = FloorTally::default();
-        for &seed in &a.seeds {
-            let dir = tmp.path().join(format!("{}-{seed}", name_of(preset)));
-            let opts = SynthOptions {
-                frames: a.frames,
-                seed,
-                preset: (*preset).into(),
-                masks: a.masks.into(),
-                joint: a.joint.into(),
-                frames_per_segment: a.frames_per_segment,
-                meshes: a.meshes.clone(),
-                rig: a.rig.rig.clone(),
-                distortion: a.rig.distortion()?,
-                persistent_noise: a.persistent_noise,
-                ..SynthOptions::default()
-            };
-            // Each capture is written once and tracked with and without its label.
-            if !dir.exists() {
-                generate(&dir, &opts, &|| {}).context("synthesising")?;
-            }
-            let mut capture = Capture::open_with(&dir, a.load.open_options())?;
-            if label == MouthLabel::Without {
-                capture = capture.without_mouth_label();
-            }
-            labelled |= capture.mouth().is_some();
-            let out = dir.join("tracks.json");
-            let options = SessionOptions {
-                backend: a.engine.backend.into(),
-                region: a.engine.region.map_or(Region::Relevant, Into::into),
-                force: true,
-                settings: settings.clone(),
-                ..SessionOptions::new(&out)
-            };
-            let summary = crate::cli::run::track(&capture, options)?;
-            tally.seconds += summary.seconds;
-            tally.evaluations += summary.evaluations;
-            tally.frames += summary.tracked_now;
-            let report = jawtrack::track::score_records(&capture, &out, &summary.records)?
-                .context("ground truth")?;
-            let opened = jawtrack::energy::open_engine(
-                a.engine.backend.into(),
-                Scene::from_capture(&capture),
-                a.engine.region.map_or(Region::Relevant, Into::into),
-            )?;
-            let mut engine = opened.engine;
-            let tracked: std::collections::HashMap<u32, ArchPoses> = summary
-                .records
-                .iter()
-                .map(|r| Ok((r.frame, r.poses(&out)?)))
-                .collect::<anyhow::Result<_>>()?;
-            for (frame, err) in &report.per_frame {
-                let truth = capture.gt_poses(*frame).context("ground truth")?;
-                let masks = capture.load_masks(*frame)?;
-                if masks.masks.iter().all(Option::is_none) {
-                    continue;
-                }
-                if a.no_floor {
-                    tally.frame(*err, None);
-                    continue;
-                }
-                engine.set_frame(&masks)?;
-                let f = FloorCheck::of(
-                    &capture,
-                    engine.as_ref(),
-                    *frame,
-                    (&truth, &tracked[frame]),
-                    &weights,
-                )?;
-                tally.frame(*err, Some(f));
-                eprintln!(
-                    "{} {} seed {seed} frame {frame}: jaw {:.3} mm, floor {:.3} mm; E tracked {:.0}, at the floor {:.0}",
-                    name_of(preset),
-                    if capture.mouth().is_some() {
-                        "labelled"
-                    } else {
-                        "unlabelled"
-                    },
-                    err[2],
-                    f.jaw_mm,
-                    f.tracked,
-                    f.floor
-                );
-            }
-            tally.capture_area_errors(report.area_error_percent.each_ref().map(|s| s.median));
-        }
-        rows.push(TrackRow {
-            preset: name_of(preset),
-            masks: name_of(&a.masks),
-            mouth_label: labelled,
-            summary: tally.summary(),
-        });
+        rows.push(measure_row(&bench, preset, label)?);
     }
     if a.json {
         println!("{}", serde_json::to_string_pretty(&rows)?);
     } else {
-        println!(
-            "mean vertex error in mm (median / 95th percentile); floor = error of E's minimum found from the truth"
-        );
-        println!(
-            "{:<10} {:<8} {:<5} {:>6} {:>8} {:>7} {:>13} {:>13} {:>13} {:>13} {:>11} {:>9} {:>13}",
-            "preset",
-            "masks",
-            "mouth",
-            "frames",
-            "s/frame",
-            "evals",
-            "jaw",
-            "upper",
-            "lower",
-            "jaw floor",
-            "ratio",
-            "shortfall",
-            "area err %"
-        );
-        for row in &rows {
-            let r = &row.summary;
-            println!(
-                "{:<10} {:<8} {:<5} {:>6} {:>8.2} {:>7.0} {:>6.3}/{:<6.3} {:>6.3}/{:<6.3} {:>6.3}/{:<6.3} {:>6.3}/{:<6.3} {:>11.2} {:>9.2} {:>6.2}/{:<6.2}",
-                row.preset,
-                row.masks,
-                if row.mouth_label { "yes" } else { "no" },
-                r.frames,
-                r.seconds_per_frame,
-                r.evaluations_per_frame,
-                r.jaw_error_mm[0],
-                r.jaw_error_mm[1],
-                r.upper_error_mm[0],
-                r.upper_error_mm[1],
-                r.lower_error_mm[0],
-                r.lower_error_mm[1],
-                r.jaw_floor_mm[0],
-                r.jaw_floor_mm[1],
-                r.median_ratio_to_floor,
-                r.search_shortfall,
-                r.area_error_percent_median[0],
-                r.area_error_percent_median[1]
-            );
-        }
+        print_table(&rows);
     }
     Ok(())
+}
+
+/// One row of the table: every seed's capture of a preset, tracked with or without its label.
+fn measure_row(b: &Bench, preset: &PresetArg, label: MouthLabel) -> anyhow::Result<TrackRow> {
+    let mut labelled = false;
+    let mut tally = FloorTally::default();
+    for &seed in &b.args.seeds {
+        labelled |= measure_capture(b, preset, label, seed, &mut tally)?;
+    }
+    Ok(TrackRow {
+        preset: name_of(preset),
+        masks: name_of(&b.args.masks),
+        mouth_label: labelled,
+        summary: tally.summary(),
+    })
+}
+
+/// Tracks one seed's capture and adds its speed, errors and floor to `tally`; whether the
+/// capture has a mouth label.
+fn measure_capture(
+    b: &Bench,
+    preset: &PresetArg,
+    label: MouthLabel,
+    seed: u64,
+    tally: &mut FloorTally,
+) -> anyhow::Result<bool> {
+    let a = b.args;
+    let dir = b.tmp.join(format!("{}-{seed}", name_of(preset)));
+    let capture = open_capture(a, &dir, preset, label, seed)?;
+    let out = dir.join("tracks.json");
+    let summary = track_capture(b, &capture, &out, tally)?;
+    let report = jawtrack::track::score_records(&capture, &out, &summary.records)?
+        .context("ground truth")?;
+    let opened = jawtrack::energy::open_engine(
+        a.engine.backend.into(),
+        Scene::from_capture(&capture),
+        a.engine.region.map_or(Region::Relevant, Into::into),
+    )?;
+    let mut engine = opened.engine;
+    let tracked: std::collections::HashMap<u32, ArchPoses> = summary
+        .records
+        .iter()
+        .map(|r| Ok((r.frame, r.poses(&out)?)))
+        .collect::<anyhow::Result<_>>()?;
+    for (frame, err) in &report.per_frame {
+        let truth = capture.gt_poses(*frame).context("ground truth")?;
+        let masks = capture.load_masks(*frame)?;
+        if masks.masks.iter().all(Option::is_none) {
+            continue;
+        }
+        if a.no_floor {
+            tally.frame(*err, None);
+            continue;
+        }
+        engine.set_frame(&masks)?;
+        let f = FloorCheck::of(
+            &capture,
+            engine.as_ref(),
+            *frame,
+            (&truth, &tracked[frame]),
+            b.weights,
+        )?;
+        tally.frame(*err, Some(f));
+        eprintln!(
+            "{} {} seed {seed} frame {frame}: jaw {:.3} mm, floor {:.3} mm; E tracked {:.0}, at the floor {:.0}",
+            name_of(preset),
+            if capture.mouth().is_some() {
+                "labelled"
+            } else {
+                "unlabelled"
+            },
+            err[2],
+            f.jaw_mm,
+            f.tracked,
+            f.floor
+        );
+    }
+    tally.capture_area_errors(report.area_error_percent.each_ref().map(|s| s.median));
+    Ok(capture.mouth().is_some())
+}
+
+/// Opens one seed's synthetic capture in `dir`, writing it the first time, without its mouth
+/// label when `label` says so.
+fn open_capture(
+    a: &TrackArgs,
+    dir: &Path,
+    preset: &PresetArg,
+    label: MouthLabel,
+    seed: u64,
+) -> anyhow::Result<Capture> {
+    let opts = SynthOptions {
+        frames: a.frames,
+        seed,
+        preset: (*preset).into(),
+        masks: a.masks.into(),
+        joint: a.joint.into(),
+        frames_per_segment: a.frames_per_segment,
+        meshes: a.meshes.clone(),
+        rig: a.rig.rig.clone(),
+        distortion: a.rig.distortion()?,
+        persistent_noise: a.persistent_noise,
+        ..SynthOptions::default()
+    };
+    // Each capture is written once and tracked with and without its label.
+    if !dir.exists() {
+        generate(dir, &opts, &|| {}).context("synthesising")?;
+    }
+    let mut capture = Capture::open_with(dir, a.load.open_options())?;
+    if label == MouthLabel::Without {
+        capture = capture.without_mouth_label();
+    }
+    Ok(capture)
+}
+
+/// Tracks the capture into `out` and adds the time, evaluations and frames to `tally`.
+fn track_capture(
+    b: &Bench,
+    capture: &Capture,
+    out: &Path,
+    tally: &mut FloorTally,
+) -> anyhow::Result<Summary> {
+    let options = SessionOptions {
+        backend: b.args.engine.backend.into(),
+        region: b.args.engine.region.map_or(Region::Relevant, Into::into),
+        force: true,
+        settings: b.settings.clone(),
+        ..SessionOptions::new(out)
+    };
+    let summary = crate::cli::run::track(capture, options)?;
+    tally.seconds += summary.seconds;
+    tally.evaluations += summary.evaluations;
+    tally.frames += summary.tracked_now;
+    Ok(summary)
+}
+
+/// Prints the rows as a table: errors as median / 95th percentile, against the energy's floor.
+fn print_table(rows: &[TrackRow]) {
+    println!(
+        "mean vertex error in mm (median / 95th percentile); floor = error of E's minimum found from the truth"
+    );
+    println!(
+        "{:<10} {:<8} {:<5} {:>6} {:>8} {:>7} {:>13} {:>13} {:>13} {:>13} {:>11} {:>9} {:>13}",
+        "preset",
+        "masks",
+        "mouth",
+        "frames",
+        "s/frame",
+        "evals",
+        "jaw",
+        "upper",
+        "lower",
+        "jaw floor",
+        "ratio",
+        "shortfall",
+        "area err %"
+    );
+    for row in rows {
+        let r = &row.summary;
+        println!(
+            "{:<10} {:<8} {:<5} {:>6} {:>8.2} {:>7.0} {:>6.3}/{:<6.3} {:>6.3}/{:<6.3} {:>6.3}/{:<6.3} {:>6.3}/{:<6.3} {:>11.2} {:>9.2} {:>6.2}/{:<6.2}",
+            row.preset,
+            row.masks,
+            if row.mouth_label { "yes" } else { "no" },
+            r.frames,
+            r.seconds_per_frame,
+            r.evaluations_per_frame,
+            r.jaw_error_mm[0],
+            r.jaw_error_mm[1],
+            r.upper_error_mm[0],
+            r.upper_error_mm[1],
+            r.lower_error_mm[0],
+            r.lower_error_mm[1],
+            r.jaw_floor_mm[0],
+            r.jaw_floor_mm[1],
+            r.median_ratio_to_floor,
+            r.search_shortfall,
+            r.area_error_percent_median[0],
+            r.area_error_percent_median[1]
+        );
+    }
 }

@@ -55,6 +55,7 @@ fn parse<T: std::str::FromStr>(token: &str, path: &Path, field: &str) -> Result<
     })
 }
 
+/// The camera models of cameras.txt, by CAMERA_ID.
 fn read_cameras_txt(path: &Path) -> Result<BTreeMap<u64, Intrinsics>> {
     let text = read_text(path, "COLMAP cameras.txt")?;
     let mut out = BTreeMap::new();
@@ -64,91 +65,8 @@ fn read_cameras_txt(path: &Path) -> Result<BTreeMap<u64, Intrinsics>> {
             continue;
         }
         let field = format!("line {}", i + 1);
-        let t: Vec<&str> = line.split_whitespace().collect();
-        if t.len() < 4 {
-            return Err(Error::invalid(
-                path,
-                &field,
-                "expected CAMERA_ID MODEL WIDTH HEIGHT PARAMS[]",
-            ));
-        }
-        let id: u64 = parse(t[0], path, &field)?;
-        let size = (parse(t[2], path, &field)?, parse(t[3], path, &field)?);
-        let p: Vec<f64> = t[4..]
-            .iter()
-            .map(|s| parse::<f64>(s, path, &field))
-            .collect::<Result<_>>()?;
-        if let Some(v) = p.iter().find(|v| !v.is_finite()) {
-            return Err(Error::invalid(
-                path,
-                &field,
-                format!("parameter {v} is not finite"),
-            ));
-        }
-        let model = t[1];
-        let want = |n: usize| -> Result<()> {
-            if p.len() == n {
-                Ok(())
-            } else {
-                Err(Error::invalid(
-                    path,
-                    &field,
-                    format!("model {model} has {n} parameters, found {}", p.len()),
-                ))
-            }
-        };
-        // COLMAP's pixel-centre convention to OpenCV's.
-        let h = 0.5;
-        let (k, distortion) = match model {
-            "SIMPLE_PINHOLE" => {
-                want(3)?;
-                ([p[0], p[0], p[1] - h, p[2] - h], Distortion::NONE)
-            }
-            "PINHOLE" => {
-                want(4)?;
-                ([p[0], p[1], p[2] - h, p[3] - h], Distortion::NONE)
-            }
-            "SIMPLE_RADIAL" => {
-                want(4)?;
-                let d = lens_from(&[p[3]], false, path, &field)?;
-                ([p[0], p[0], p[1] - h, p[2] - h], d)
-            }
-            "RADIAL" => {
-                want(5)?;
-                let d = lens_from(&[p[3], p[4]], false, path, &field)?;
-                ([p[0], p[0], p[1] - h, p[2] - h], d)
-            }
-            "OPENCV" | "FULL_OPENCV" | "OPENCV_FISHEYE" => {
-                want(match model {
-                    "OPENCV" | "OPENCV_FISHEYE" => 8,
-                    _ => 12,
-                })?;
-                // k1 k2 p1 p2 [k3 k4 k5 k6], or the fisheye's k1..k4: OpenCV's order already.
-                let d = lens_from(&p[4..], model == "OPENCV_FISHEYE", path, &field)?;
-                ([p[0], p[1], p[2] - h, p[3] - h], d)
-            }
-            other => {
-                return Err(Error::invalid(
-                    path,
-                    &field,
-                    format!(
-                        "camera model {other} is not supported: use SIMPLE_PINHOLE, PINHOLE, \
-                         SIMPLE_RADIAL, RADIAL, OPENCV, FULL_OPENCV or OPENCV_FISHEYE"
-                    ),
-                ));
-            }
-        };
-        if out
-            .insert(
-                id,
-                Intrinsics {
-                    size,
-                    k,
-                    distortion,
-                },
-            )
-            .is_some()
-        {
+        let (id, intrinsics) = camera_line(line, path, &field)?;
+        if out.insert(id, intrinsics).is_some() {
             return Err(Error::invalid(
                 path,
                 &field,
@@ -160,6 +78,101 @@ fn read_cameras_txt(path: &Path) -> Result<BTreeMap<u64, Intrinsics>> {
         return Err(Error::invalid(path, ".", "lists no cameras"));
     }
     Ok(out)
+}
+
+/// One camera line of cameras.txt (`field` names it): its CAMERA_ID and intrinsics.
+fn camera_line(line: &str, path: &Path, field: &str) -> Result<(u64, Intrinsics)> {
+    let t: Vec<&str> = line.split_whitespace().collect();
+    if t.len() < 4 {
+        return Err(Error::invalid(
+            path,
+            field,
+            "expected CAMERA_ID MODEL WIDTH HEIGHT PARAMS[]",
+        ));
+    }
+    let id: u64 = parse(t[0], path, field)?;
+    let size = (parse(t[2], path, field)?, parse(t[3], path, field)?);
+    let p: Vec<f64> = t[4..]
+        .iter()
+        .map(|s| parse::<f64>(s, path, field))
+        .collect::<Result<_>>()?;
+    if let Some(v) = p.iter().find(|v| !v.is_finite()) {
+        return Err(Error::invalid(
+            path,
+            field,
+            format!("parameter {v} is not finite"),
+        ));
+    }
+    let (k, distortion) = model_intrinsics(t[1], &p, path, field)?;
+    Ok((
+        id,
+        Intrinsics {
+            size,
+            k,
+            distortion,
+        },
+    ))
+}
+
+/// A camera model's parameters `p` as OpenCV's fx, fy, cx, cy and distortion.
+fn model_intrinsics(
+    model: &str,
+    p: &[f64],
+    path: &Path,
+    field: &str,
+) -> Result<([f64; 4], Distortion)> {
+    let want = |n: usize| -> Result<()> {
+        if p.len() == n {
+            Ok(())
+        } else {
+            Err(Error::invalid(
+                path,
+                field,
+                format!("model {model} has {n} parameters, found {}", p.len()),
+            ))
+        }
+    };
+    // COLMAP's pixel-centre convention to OpenCV's.
+    let h = 0.5;
+    Ok(match model {
+        "SIMPLE_PINHOLE" => {
+            want(3)?;
+            ([p[0], p[0], p[1] - h, p[2] - h], Distortion::NONE)
+        }
+        "PINHOLE" => {
+            want(4)?;
+            ([p[0], p[1], p[2] - h, p[3] - h], Distortion::NONE)
+        }
+        "SIMPLE_RADIAL" => {
+            want(4)?;
+            let d = lens_from(&[p[3]], false, path, field)?;
+            ([p[0], p[0], p[1] - h, p[2] - h], d)
+        }
+        "RADIAL" => {
+            want(5)?;
+            let d = lens_from(&[p[3], p[4]], false, path, field)?;
+            ([p[0], p[0], p[1] - h, p[2] - h], d)
+        }
+        "OPENCV" | "FULL_OPENCV" | "OPENCV_FISHEYE" => {
+            want(match model {
+                "OPENCV" | "OPENCV_FISHEYE" => 8,
+                _ => 12,
+            })?;
+            // k1 k2 p1 p2 [k3 k4 k5 k6], or the fisheye's k1..k4: OpenCV's order already.
+            let d = lens_from(&p[4..], model == "OPENCV_FISHEYE", path, field)?;
+            ([p[0], p[1], p[2] - h, p[3] - h], d)
+        }
+        other => {
+            return Err(Error::invalid(
+                path,
+                field,
+                format!(
+                    "camera model {other} is not supported: use SIMPLE_PINHOLE, PINHOLE, \
+                     SIMPLE_RADIAL, RADIAL, OPENCV, FULL_OPENCV or OPENCV_FISHEYE"
+                ),
+            ));
+        }
+    })
 }
 
 /// The capture's camera name for a COLMAP image name.
@@ -200,6 +213,7 @@ fn looks_like_an_image_line(line: &str, intrinsics: &BTreeMap<u64, Intrinsics>) 
             .is_ok_and(|id| intrinsics.contains_key(&id))
 }
 
+/// The cameras of images.txt, one per camera name, each posed by its first image.
 fn read_images_txt(
     path: &Path,
     intrinsics: &BTreeMap<u64, Intrinsics>,
@@ -212,9 +226,7 @@ fn read_images_txt(
         .enumerate()
         .filter(|(_, l)| !l.trim_start().starts_with('#'))
         .collect();
-    let mut by_name: BTreeMap<String, (ImportedCamera, Vec<Vector3<f64>>, String)> =
-        BTreeMap::new();
-    let mut order = Vec::new();
+    let mut seen = SeenCameras::default();
     for pair in lines.chunks(2) {
         let (i, line) = pair[0];
         let field = format!("line {}", i + 1);
@@ -233,87 +245,131 @@ fn read_images_txt(
             ));
         }
 
-        if t.len() < 10 {
-            return Err(Error::invalid(
-                path,
-                &field,
-                "expected IMAGE_ID QW QX QY QZ TX TY TZ CAMERA_ID NAME",
-            ));
-        }
-        let v: Vec<f64> = t[1..8]
-            .iter()
-            .map(|s| parse(s, path, &field))
-            .collect::<Result<_>>()?;
-        if v.iter().any(|x| !x.is_finite()) {
-            return Err(Error::invalid(path, &field, "a pose value is not finite"));
-        }
-        let q = Quaternion::new(v[0], v[1], v[2], v[3]);
-        if (q.norm() - 1.0).abs() > 1e-3 {
-            return Err(Error::invalid(
-                path,
-                &field,
-                format!("the quaternion's norm is {}, not 1", q.norm()),
-            ));
-        }
-        let rotation = UnitQuaternion::from_quaternion(q).to_rotation_matrix();
-        let camera_id: u64 = parse(t[8], path, &field)?;
-        let image = t[9..].join(" ");
-        let intr = intrinsics.get(&camera_id).ok_or_else(|| {
-            Error::invalid(
-                path,
-                &field,
-                format!("image `{image}` uses camera {camera_id}, which cameras.txt does not list"),
-            )
-        })?;
-        let pose = extrinsics(rotation, Vector3::new(v[4], v[5], v[6]), options);
-        let name = camera_name(&image);
-        let cam = ImportedCamera::new(
-            &name,
+        let (name, cam, image) = image_camera(&t, path, &field, intrinsics, options)?;
+        seen.add(name, cam, image, path, &field)?;
+    }
+    if seen.order.is_empty() {
+        return Err(Error::invalid(path, ".", "lists no images"));
+    }
+    Ok(seen.into_cameras())
+}
+
+/// One image line's tokens `t` (`field` names the line): the camera's name, the camera as
+/// this image places it, and the image's name.
+fn image_camera(
+    t: &[&str],
+    path: &Path,
+    field: &str,
+    intrinsics: &BTreeMap<u64, Intrinsics>,
+    options: &ImportOptions,
+) -> Result<(String, ImportedCamera, String)> {
+    if t.len() < 10 {
+        return Err(Error::invalid(
             path,
-            intr.size,
-            intr.k,
-            intr.distortion,
-            pose,
-            vec![format!("from image `{image}`")],
-        )?;
-        let known = by_name.len();
-        match by_name.get_mut(&name) {
+            field,
+            "expected IMAGE_ID QW QX QY QZ TX TY TZ CAMERA_ID NAME",
+        ));
+    }
+    let v: Vec<f64> = t[1..8]
+        .iter()
+        .map(|s| parse(s, path, field))
+        .collect::<Result<_>>()?;
+    if v.iter().any(|x| !x.is_finite()) {
+        return Err(Error::invalid(path, field, "a pose value is not finite"));
+    }
+    let q = Quaternion::new(v[0], v[1], v[2], v[3]);
+    if (q.norm() - 1.0).abs() > 1e-3 {
+        return Err(Error::invalid(
+            path,
+            field,
+            format!("the quaternion's norm is {}, not 1", q.norm()),
+        ));
+    }
+    let rotation = UnitQuaternion::from_quaternion(q).to_rotation_matrix();
+    let camera_id: u64 = parse(t[8], path, field)?;
+    let image = t[9..].join(" ");
+    let intr = intrinsics.get(&camera_id).ok_or_else(|| {
+        Error::invalid(
+            path,
+            field,
+            format!("image `{image}` uses camera {camera_id}, which cameras.txt does not list"),
+        )
+    })?;
+    let pose = extrinsics(rotation, Vector3::new(v[4], v[5], v[6]), options);
+    let name = camera_name(&image);
+    let cam = ImportedCamera::new(
+        &name,
+        path,
+        intr.size,
+        intr.k,
+        intr.distortion,
+        pose,
+        vec![format!("from image `{image}`")],
+    )?;
+    Ok((name, cam, image))
+}
+
+/// The cameras images.txt names, in the order first met.
+#[derive(Default)]
+struct SeenCameras {
+    /// Per camera: as its first image places it, every image's camera centre, and that first
+    /// image's name.
+    by_name: BTreeMap<String, (ImportedCamera, Vec<Vector3<f64>>, String)>,
+    order: Vec<String>,
+}
+
+impl SeenCameras {
+    /// Records an image's camera: a new camera (up to `MAX_CAMERAS`), or one more centre of a
+    /// known one.
+    fn add(
+        &mut self,
+        name: String,
+        cam: ImportedCamera,
+        image: String,
+        path: &Path,
+        field: &str,
+    ) -> Result<()> {
+        let known = self.by_name.len();
+        match self.by_name.get_mut(&name) {
             Some((_, centres, _)) => centres.push(cam.centre()),
             None if known >= MAX_CAMERAS => {
                 return Err(Error::invalid(
                     path,
-                    &field,
+                    field,
                     format!("over {MAX_CAMERAS} cameras: a capture films the teeth with a few"),
                 ));
             }
             None => {
                 let centre = cam.centre();
-                order.push(name.clone());
-                by_name.insert(name, (cam, vec![centre], image));
+                self.order.push(name.clone());
+                self.by_name.insert(name, (cam, vec![centre], image));
             }
         }
+        Ok(())
     }
-    if order.is_empty() {
-        return Err(Error::invalid(path, ".", "lists no images"));
+
+    /// The cameras in order, each noting how far its other images' centres spread.
+    fn into_cameras(self) -> Vec<ImportedCamera> {
+        let SeenCameras { mut by_name, order } = self;
+        order
+            .into_iter()
+            .map(|name| {
+                let (mut cam, centres, first) = by_name.remove(&name).expect("listed above");
+                if centres.len() > 1 {
+                    let spread = centres
+                        .iter()
+                        .map(|c| (c - centres[0]).norm())
+                        .fold(0.0, f64::max);
+                    cam.notes.push(format!(
+                        "{} images of this camera; the first (`{first}`) gives its pose, the \
+                         others' centres lie within {spread:.3} mm of it",
+                        centres.len()
+                    ));
+                }
+                cam
+            })
+            .collect()
     }
-    Ok(order
-        .into_iter()
-        .map(|name| {
-            let (mut cam, centres, first) = by_name.remove(&name).expect("listed above");
-            if centres.len() > 1 {
-                let spread = centres
-                    .iter()
-                    .map(|c| (c - centres[0]).norm())
-                    .fold(0.0, f64::max);
-                cam.notes.push(format!(
-                    "{} images of this camera; the first (`{first}`) gives its pose, the others' \
-                     centres lie within {spread:.3} mm of it",
-                    centres.len()
-                ));
-            }
-            cam
-        })
-        .collect())
 }
 
 #[cfg(test)]
