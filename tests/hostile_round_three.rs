@@ -601,21 +601,24 @@ fn skin_refuses_foreign_tracks_huge_skin_and_names_its_own_folders() {
     let huge_frame = first.with_extension("obj");
     std::fs::write(&huge_frame, "v 3e38 3e38 3e38\n".repeat(count)).unwrap();
     let predicted = t.path().join("jaw.json");
-    refused(
-        &[
-            "skin",
-            "predict",
-            s(&model),
-            s(&face),
-            "--out",
-            s(&predicted),
-        ],
-        &[
-            huge_frame.file_name().unwrap().to_str().unwrap(),
-            "vertex 1",
-            "beyond",
-        ],
-    );
+    let predict = |parts: &[&str]| {
+        refused(
+            &[
+                "skin",
+                "predict",
+                s(&model),
+                s(&face),
+                "--out",
+                s(&predicted),
+            ],
+            parts,
+        )
+    };
+    predict(&[
+        huge_frame.file_name().unwrap().to_str().unwrap(),
+        "vertex 1",
+        "beyond",
+    ]);
     std::fs::remove_file(&huge_frame).unwrap();
     std::fs::rename(&kept, &first).unwrap();
 
@@ -624,17 +627,7 @@ fn skin_refuses_foreign_tracks_huge_skin_and_names_its_own_folders() {
     let elsewhere = t.path().join("mandible.obj");
     std::fs::rename(&mandible, &elsewhere).unwrap();
     std::os::unix::fs::symlink(&elsewhere, &mandible).unwrap();
-    let e = refused(
-        &[
-            "skin",
-            "predict",
-            s(&model),
-            s(&face),
-            "--out",
-            s(&predicted),
-        ],
-        &["mandible", "face sequence"],
-    );
+    let e = predict(&["mandible", "face sequence"]);
     assert!(!e.contains("--allow-outside"), "{e}");
     std::fs::remove_file(&mandible).unwrap();
     std::fs::rename(&elsewhere, &mandible).unwrap();
