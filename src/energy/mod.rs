@@ -6,6 +6,7 @@
 pub mod backend;
 pub mod backfaces;
 pub mod clusters;
+pub mod contour;
 pub mod cpu;
 pub mod gpu;
 #[doc(hidden)]

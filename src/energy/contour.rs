@@ -1,0 +1,467 @@
+//! The silhouette contour of a posed mesh seen by a pinhole camera (the energy's mask cameras
+//! are undistorted): the edges where the surface folds away from the camera or ends, sampled
+//! along their projection, each sample with its outward normal in the image, the length of
+//! contour it stands for and the Jacobian of its pixel position under a change of the pose.
+//!
+//! This is what a derivative of the energy is made of. A pixel count under the silhouette
+//! (the mask pixels a model covers) changes, as the pose moves by ξ, by the contour integral
+//! of what lies under the contour against its outward motion, ∮ f(x)·⟨J(x)·ξ, n(x)⟩ ds; the
+//! points here are that integral's quadrature. Region-based trackers take their Gauss-Newton
+//! steps from the same points.
+
+use std::collections::HashMap;
+
+use nalgebra::{Matrix2x3, Matrix2x6, Matrix3x6, Vector2, Vector3};
+
+use super::target::Target;
+use crate::geometry::{Camera, Pose, hat};
+use crate::mesh::Mesh;
+
+/// Points nearer the camera than this (mm) are not projected.
+const NEAR_MM: f64 = 1e-3;
+
+/// An edge of the mesh and the third vertex of each face on it (one face: an open edge).
+#[derive(Debug, Clone, Copy)]
+struct Edge {
+    ends: [u32; 2],
+    opposite: [u32; 2],
+    faces: u8,
+}
+
+/// The mesh's edges with their faces, found once per mesh; edges of three or more faces (a
+/// non-manifold scan) are left out.
+#[derive(Debug, Clone)]
+pub struct ContourEdges {
+    edges: Vec<Edge>,
+}
+
+/// One sample of the silhouette contour.
+#[derive(Debug, Clone, Copy)]
+pub struct ContourPoint {
+    /// Pixel position (pixel centres at integers, as the camera's `cx`, `cy` are given).
+    pub pixel: Vector2<f64>,
+    /// Unit normal in the image, pointing out of the silhouette.
+    pub normal: Vector2<f64>,
+    /// The length of contour (pixels) the sample stands for.
+    pub length: f64,
+    /// 1/z of the surface point (mm⁻¹), the depth buffer's unit.
+    pub inv_depth: f64,
+    /// ∂pixel/∂ξ for the pose `world_from_model ← exp(ξ)·world_from_model`, ξ = [ω; v] in the
+    /// world frame (rad, mm).
+    pub jacobian: Matrix2x6<f64>,
+}
+
+impl ContourEdges {
+    pub fn of(mesh: &Mesh) -> ContourEdges {
+        let mut on_edge: HashMap<(u32, u32), Edge> = HashMap::new();
+        for t in &mesh.triangles {
+            for k in 0..3 {
+                let (a, b, c) = (t[k], t[(k + 1) % 3], t[(k + 2) % 3]);
+                let key = (a.min(b), a.max(b));
+                let e = on_edge.entry(key).or_insert(Edge {
+                    ends: [key.0, key.1],
+                    opposite: [c, c],
+                    faces: 0,
+                });
+                if e.faces < 2 {
+                    e.opposite[e.faces as usize] = c;
+                }
+                e.faces = e.faces.saturating_add(1);
+            }
+        }
+        let mut edges: Vec<Edge> = on_edge.into_values().filter(|e| e.faces <= 2).collect();
+        // A fixed order, so that a contour is the same from run to run.
+        edges.sort_by_key(|e| e.ends);
+        ContourEdges { edges }
+    }
+
+    /// The contour of `mesh` (the mesh these edges are of) at `world_from_model` in `cam`,
+    /// sampled about every `spacing_px` pixels along each silhouette edge. Hidden parts are
+    /// included: [`visible`] leaves them out against a depth buffer.
+    pub fn contour(
+        &self,
+        mesh: &Mesh,
+        world_from_model: &Pose,
+        cam: &Camera,
+        spacing_px: f64,
+    ) -> Vec<ContourPoint> {
+        let view = View { cam };
+        let world: Vec<Vector3<f64>> = mesh
+            .points()
+            .map(|p| world_from_model.transform_point(&p))
+            .collect();
+        let mut out = Vec::new();
+        for e in &self.edges {
+            let [a, b] = e.ends.map(|v| world[v as usize]);
+            let (Some(pa), Some(pb)) = (view.pixel(&a), view.pixel(&b)) else {
+                continue;
+            };
+            let along = pb - pa;
+            let length = along.norm();
+            if length < 1e-9 {
+                continue;
+            }
+            let across = Vector2::new(-along.y, along.x) / length;
+            let side = |v: u32| {
+                view.pixel(&world[v as usize])
+                    .map_or(0.0, |p| (p - pa).dot(&across).signum())
+            };
+            let first = side(e.opposite[0]);
+            // A fold: both faces on one side of the edge's projection; an open edge: its one
+            // face on one side. The silhouette's outside is the other side.
+            let silhouette = first != 0.0 && (e.faces == 1 || side(e.opposite[1]) == first);
+            if !silhouette {
+                continue;
+            }
+            let normal = -first * across;
+            let n = (length / spacing_px).ceil().max(1.0) as usize;
+            for i in 0..n {
+                let s = (i as f64 + 0.5) / n as f64;
+                let p = a + (b - a) * s;
+                if let Some((pixel, inv_depth, jacobian)) = view.point(&p) {
+                    out.push(ContourPoint {
+                        pixel,
+                        normal,
+                        length: length / n as f64,
+                        inv_depth,
+                        jacobian,
+                    });
+                }
+            }
+        }
+        out
+    }
+}
+
+/// The points of `contour` that the depth buffer `target` (drawn with every mesh that may hide
+/// them) shows: the pixel just inside each point holds nothing, or a surface no nearer than
+/// `tolerance_mm` in front of it. The tolerance is for the model's own surface, which near a
+/// silhouette comes closer to the camera the further inside one looks.
+pub fn visible(contour: &[ContourPoint], target: &Target, tolerance_mm: f64) -> Vec<ContourPoint> {
+    let Some(rect) = target.rect else {
+        return Vec::new();
+    };
+    contour
+        .iter()
+        .filter(|c| {
+            let inside = c.pixel - 0.75 * c.normal;
+            let (x, y) = (inside.x.round(), inside.y.round());
+            let (x0, y0) = (rect.x0 as f64, rect.y0 as f64);
+            if x < x0 || y < y0 || x >= x0 + rect.width as f64 || y >= y0 + rect.height as f64 {
+                return false;
+            }
+            let i = (y - y0) as usize * rect.width as usize + (x - x0) as usize;
+            let shown = target.inv_depth[i] as f64;
+            shown == 0.0 || 1.0 / shown >= 1.0 / c.inv_depth - tolerance_mm
+        })
+        .copied()
+        .collect()
+}
+
+/// The rate of change of the uncovered term (mask pixels the model does not cover) as the pose
+/// moves by ξ: `−∮ M(x)·⟨J(x)·ξ, n(x)⟩ ds` over the visible contour, with `mask` the mask's
+/// value at a pixel position (1 on the arch's label, 0 off it; a soft mask's probability works
+/// as well). As a gradient: `−Σ M·Jᵀn·length`.
+pub fn uncovered_gradient(
+    contour: &[ContourPoint],
+    mask: impl Fn(Vector2<f64>) -> f64,
+) -> nalgebra::Vector6<f64> {
+    contour.iter().fold(nalgebra::Vector6::zeros(), |g, c| {
+        g - c.jacobian.transpose() * c.normal * (mask(c.pixel) * c.length)
+    })
+}
+
+/// A binary mask's value at a pixel position, bilinear between pixel centres: what the
+/// contour sees of a mask whose edge falls between two pixels (0 outside the image).
+pub fn bilinear(
+    mask: &[u8],
+    width: usize,
+    height: usize,
+    on: impl Fn(u8) -> bool,
+    x: Vector2<f64>,
+) -> f64 {
+    let (fx, fy) = (x.x.floor(), x.y.floor());
+    let (tx, ty) = (x.x - fx, x.y - fy);
+    let at = |i: f64, j: f64| {
+        if i < 0.0 || j < 0.0 || i >= width as f64 || j >= height as f64 {
+            return 0.0;
+        }
+        on(mask[j as usize * width + i as usize]) as u8 as f64
+    };
+    (1.0 - ty) * ((1.0 - tx) * at(fx, fy) + tx * at(fx + 1.0, fy))
+        + ty * ((1.0 - tx) * at(fx, fy + 1.0) + tx * at(fx + 1.0, fy + 1.0))
+}
+
+/// The camera and the pose, for projecting world points with their Jacobians.
+struct View<'a> {
+    cam: &'a Camera,
+}
+
+impl View<'_> {
+    fn pixel(&self, p_world: &Vector3<f64>) -> Option<Vector2<f64>> {
+        let pc = self.cam.camera_from_world.transform_point(p_world);
+        (pc.z > NEAR_MM).then(|| {
+            Vector2::new(
+                self.cam.fx * pc.x / pc.z + self.cam.cx,
+                self.cam.fy * pc.y / pc.z + self.cam.cy,
+            )
+        })
+    }
+
+    /// Pixel, 1/z and ∂pixel/∂ξ of a world point moved by `exp(ξ)` (left, in the world frame).
+    fn point(&self, p_world: &Vector3<f64>) -> Option<(Vector2<f64>, f64, Matrix2x6<f64>)> {
+        let pc = self.cam.camera_from_world.transform_point(p_world);
+        if pc.z <= NEAR_MM {
+            return None;
+        }
+        let (fx, fy) = (self.cam.fx, self.cam.fy);
+        let iz = 1.0 / pc.z;
+        let pixel = Vector2::new(fx * pc.x * iz + self.cam.cx, fy * pc.y * iz + self.cam.cy);
+        let d_pixel_d_camera = Matrix2x3::new(
+            fx * iz,
+            0.0,
+            -fx * pc.x * iz * iz,
+            0.0,
+            fy * iz,
+            -fy * pc.y * iz * iz,
+        );
+        // exp(ξ)·p ≈ p + ω × p + v = p − [p]×·ω + v.
+        let mut d_world_d_xi = Matrix3x6::zeros();
+        d_world_d_xi
+            .fixed_view_mut::<3, 3>(0, 0)
+            .copy_from(&(-hat(p_world)));
+        d_world_d_xi
+            .fixed_view_mut::<3, 3>(0, 3)
+            .copy_from(&nalgebra::Matrix3::identity());
+        let rotation = self.cam.camera_from_world.rotation.matrix();
+        Some((pixel, iz, d_pixel_d_camera * rotation * d_world_d_xi))
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use nalgebra::Vector6;
+
+    use super::*;
+    use crate::energy::raster::render_target;
+    use crate::energy::target::{CLASS_BODY, CLASS_NONE};
+    use crate::geometry::Distortion;
+
+    fn camera() -> Camera {
+        Camera {
+            name: "c".into(),
+            width: 800,
+            height: 800,
+            fx: 1000.0,
+            fy: 1000.0,
+            cx: 400.0,
+            cy: 400.0,
+            distortion: Distortion::NONE,
+            camera_from_world: Pose::IDENTITY,
+        }
+    }
+
+    /// A cube of side `s` centred at the origin, wound outwards.
+    fn cube(s: f32) -> Mesh {
+        let h = s / 2.0;
+        let positions = (0..8)
+            .map(|i| {
+                [
+                    if i & 1 == 0 { -h } else { h },
+                    if i & 2 == 0 { -h } else { h },
+                    if i & 4 == 0 { -h } else { h },
+                ]
+            })
+            .collect();
+        let quads = [
+            [0, 2, 3, 1],
+            [4, 5, 7, 6],
+            [0, 1, 5, 4],
+            [2, 6, 7, 3],
+            [0, 4, 6, 2],
+            [1, 3, 7, 5],
+        ];
+        let triangles: Vec<[u32; 3]> = quads
+            .iter()
+            .flat_map(|q| [[q[0], q[1], q[2]], [q[0], q[2], q[3]]])
+            .collect();
+        Mesh {
+            boi: vec![false; triangles.len()],
+            positions,
+            triangles,
+        }
+    }
+
+    /// The cube 150 mm in front of the camera, turned so that three faces show.
+    fn posed() -> Pose {
+        Pose::new(
+            crate::geometry::so3_exp(&Vector3::new(0.4, 0.6, 0.1)),
+            Vector3::new(3.0, -2.0, 150.0),
+        )
+    }
+
+    fn covered(mesh: &Mesh, pose: &Pose) -> f64 {
+        let t = render_target(&camera(), &[(mesh, pose, CLASS_BODY, CLASS_BODY)]);
+        t.class.iter().filter(|&&c| c != CLASS_NONE).count() as f64
+    }
+
+    /// The contour integral of the outward motion: d(covered pixels)/dt along ξ.
+    fn area_rate(mesh: &Mesh, pose: &Pose, xi: &Vector6<f64>) -> f64 {
+        let c = ContourEdges::of(mesh).contour(mesh, pose, &camera(), 1.0);
+        c.iter()
+            .map(|p| (p.jacobian * xi).dot(&p.normal) * p.length)
+            .sum()
+    }
+
+    #[test]
+    fn the_jacobian_is_the_derivative_of_the_projection() {
+        let cam = Camera {
+            camera_from_world: Pose::new(
+                crate::geometry::so3_exp(&Vector3::new(0.1, -0.2, 0.05)),
+                Vector3::new(5.0, 1.0, 20.0),
+            ),
+            ..camera()
+        };
+        let view = View { cam: &cam };
+        let p = Vector3::new(12.0, -7.0, 130.0);
+        let (_, _, j) = view.point(&p).unwrap();
+        for k in 0..6 {
+            let h = 1e-6;
+            let mut xi = Vector6::zeros();
+            xi[k] = h;
+            let plus = view.pixel(&Pose::exp(&xi).transform_point(&p)).unwrap();
+            let minus = view.pixel(&Pose::exp(&-xi).transform_point(&p)).unwrap();
+            let fd = (plus - minus) / (2.0 * h);
+            let err = (fd - j.column(k)).norm();
+            assert!(
+                err < 1e-4 * (1.0 + fd.norm()),
+                "ξ[{k}]: {fd} vs {}",
+                j.column(k)
+            );
+        }
+    }
+
+    #[test]
+    fn the_contour_is_the_outline_and_its_normals_point_out() {
+        let (mesh, pose) = (cube(40.0), posed());
+        let c = ContourEdges::of(&mesh).contour(&mesh, &pose, &camera(), 2.0);
+        let t = render_target(&camera(), &[(&mesh, &pose, CLASS_BODY, CLASS_BODY)]);
+        let class = |x: Vector2<f64>| t.class[x.y.round() as usize * 800 + x.x.round() as usize];
+        let right = c
+            .iter()
+            .filter(|p| class(p.pixel + 2.0 * p.normal) == CLASS_NONE)
+            .filter(|p| class(p.pixel - 2.0 * p.normal) != CLASS_NONE)
+            .count();
+        assert!(c.len() > 100, "{} points", c.len());
+        // All but those within a pixel or two of the outline's corners.
+        assert!(right * 100 >= c.len() * 95, "{right} of {} right", c.len());
+        // The outline's length: the contour of a convex body is its perimeter.
+        let perimeter: f64 = c.iter().map(|p| p.length).sum();
+        let area = covered(&mesh, &pose);
+        assert!(
+            perimeter > 2.0 * (std::f64::consts::PI * area).sqrt(),
+            "{perimeter}"
+        );
+        assert!(perimeter < 4.5 * area.sqrt(), "{perimeter} for {area} px");
+    }
+
+    #[test]
+    fn the_contour_integral_is_the_rate_of_the_covered_area() {
+        let (mesh, pose) = (cube(40.0), posed());
+        // Towards the camera, sideways, and turning about the cube's own axes.
+        let moves = [
+            Vector6::new(0.0, 0.0, 0.0, 0.0, 0.0, -1.0),
+            Vector6::new(0.0, 0.0, 0.0, 1.0, 0.5, 0.0),
+            Vector6::new(0.01, 0.0, 0.0, 0.0, -1.5, 0.0),
+            Vector6::new(0.0, 0.01, 0.0, -1.5, 0.0, 0.0),
+        ];
+        let h = 2.0;
+        for xi in moves {
+            let plus = covered(&mesh, &(Pose::exp(&(xi * h)).compose(&pose)));
+            let minus = covered(&mesh, &(Pose::exp(&(xi * -h)).compose(&pose)));
+            let fd = (plus - minus) / (2.0 * h);
+            let rate = area_rate(&mesh, &pose, &xi);
+            eprintln!(
+                "ξ {:?}: contour {rate:.1} px, pixel count {fd:.1} px",
+                xi.as_slice()
+            );
+            // Pixel counting leaves about a pixel per unit of contour: a few per cent of the
+            // rate at these steps.
+            assert!(
+                (rate - fd).abs() < 0.05 * fd.abs() + 40.0,
+                "ξ {xi}: {rate} vs {fd} px"
+            );
+        }
+    }
+
+    #[test]
+    fn the_uncovered_gradient_is_the_rate_of_the_uncovered_count() {
+        // The mask: the cube's silhouette at another pose (what the camera saw); the model
+        // starts off it, so part of the mask is uncovered and part of the model is outside.
+        let (mesh, truth) = (cube(40.0), posed());
+        let start = Pose::exp(&Vector6::new(0.03, -0.02, 0.05, 4.0, -3.0, 6.0)).compose(&truth);
+        let cam = camera();
+        let mask = render_target(&cam, &[(&mesh, &truth, CLASS_BODY, CLASS_BODY)]).class;
+        let uncovered = |pose: &Pose| {
+            let t = render_target(&cam, &[(&mesh, pose, CLASS_BODY, CLASS_BODY)]);
+            mask.iter()
+                .zip(&t.class)
+                .filter(|&(&m, &c)| m != CLASS_NONE && c == CLASS_NONE)
+                .count() as f64
+        };
+        let contour = ContourEdges::of(&mesh).contour(&mesh, &start, &cam, 1.0);
+        let g = uncovered_gradient(&contour, |x| {
+            bilinear(&mask, 800, 800, |c| c != CLASS_NONE, x)
+        });
+        let h = 1.0;
+        for k in 0..6 {
+            // Steps of about a millimetre at the cube either way.
+            let scale = if k < 3 { 0.005 } else { 1.0 };
+            let mut xi = Vector6::zeros();
+            xi[k] = scale * h;
+            let fd = (uncovered(&(Pose::exp(&xi).compose(&start)))
+                - uncovered(&(Pose::exp(&-xi).compose(&start))))
+                / (2.0 * h);
+            let rate = g[k] * scale;
+            eprintln!("ξ[{k}]: gradient {rate:.1} px, pixel count {fd:.1} px");
+            assert!(
+                (rate - fd).abs() < 0.08 * fd.abs() + 40.0,
+                "ξ[{k}]: {rate} vs {fd}"
+            );
+        }
+    }
+
+    #[test]
+    fn a_hidden_edge_is_left_out_against_the_depth_buffer() {
+        let (mesh, pose) = (cube(40.0), posed());
+        // A wall in front of the cube's left half.
+        let wall = Mesh {
+            positions: vec![
+                [-200.0, -200.0, 100.0],
+                [3.0, -200.0, 100.0],
+                [3.0, 200.0, 100.0],
+                [-200.0, 200.0, 100.0],
+            ],
+            triangles: vec![[0, 1, 2], [0, 2, 3]],
+            boi: vec![false, false],
+        };
+        let cam = camera();
+        let all = ContourEdges::of(&mesh).contour(&mesh, &pose, &cam, 2.0);
+        let alone = render_target(&cam, &[(&mesh, &pose, CLASS_BODY, CLASS_BODY)]);
+        let both = render_target(
+            &cam,
+            &[
+                (&mesh, &pose, CLASS_BODY, CLASS_BODY),
+                (&wall, &Pose::IDENTITY, CLASS_BODY, CLASS_BODY),
+            ],
+        );
+        assert_eq!(visible(&all, &alone, 2.0).len(), all.len());
+        let shown = visible(&all, &both, 2.0);
+        // The wall covers the image left of x = 3 mm at 100 mm: pixel 430 and less.
+        assert!(
+            shown.iter().all(|p| p.pixel.x > 428.0),
+            "a hidden point kept"
+        );
+        assert!(!shown.is_empty() && shown.len() < all.len());
+    }
+}
