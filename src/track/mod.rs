@@ -4,6 +4,7 @@
 //! tracks.json as it is written (`output`), scoring against ground truth (`score`) and
 //! overlays (`overlay`).
 
+pub mod align;
 pub mod contact;
 pub mod floor;
 pub mod manifold;
