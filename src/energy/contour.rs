@@ -1,5 +1,5 @@
-//! The silhouette contour of a posed mesh seen by a pinhole camera (the energy's mask cameras
-//! are undistorted): the edges where the surface folds away from the camera or ends, sampled
+//! The silhouette contour of a posed mesh seen by a camera (through its lens, as the
+//! rasteriser projects): the edges where the surface folds away from the camera or ends, sampled
 //! along their projection, each sample with its outward normal in the image, the length of
 //! contour it stands for and the Jacobian of its pixel position under a change of the pose.
 //!
@@ -25,6 +25,7 @@ const NEAR_MM: f64 = 1e-3;
 struct Edge {
     ends: [u32; 2],
     opposite: [u32; 2],
+    face: [u32; 2],
     faces: u8,
 }
 
@@ -54,17 +55,19 @@ pub struct ContourPoint {
 impl ContourEdges {
     pub fn of(mesh: &Mesh) -> ContourEdges {
         let mut on_edge: HashMap<(u32, u32), Edge> = HashMap::new();
-        for t in &mesh.triangles {
+        for (f, t) in mesh.triangles.iter().enumerate() {
             for k in 0..3 {
                 let (a, b, c) = (t[k], t[(k + 1) % 3], t[(k + 2) % 3]);
                 let key = (a.min(b), a.max(b));
                 let e = on_edge.entry(key).or_insert(Edge {
                     ends: [key.0, key.1],
                     opposite: [c, c],
+                    face: [f as u32; 2],
                     faces: 0,
                 });
                 if e.faces < 2 {
                     e.opposite[e.faces as usize] = c;
+                    e.face[e.faces as usize] = f as u32;
                 }
                 e.faces = e.faces.saturating_add(1);
             }
@@ -84,6 +87,21 @@ impl ContourEdges {
         world_from_model: &Pose,
         cam: &Camera,
         spacing_px: f64,
+    ) -> Vec<ContourPoint> {
+        self.outline(mesh, world_from_model, cam, spacing_px, None)
+    }
+
+    /// [`Self::contour`], and with `region` (a flag per face) also the edges where a face of
+    /// the region meets one outside it, their normals pointing out of the region: together the
+    /// outline of the region's visible part, once [`visible`] keeps only the samples whose
+    /// inside shows the region.
+    pub fn outline(
+        &self,
+        mesh: &Mesh,
+        world_from_model: &Pose,
+        cam: &Camera,
+        spacing_px: f64,
+        region: Option<&[bool]>,
     ) -> Vec<ContourPoint> {
         let view = View { cam };
         let world: Vec<Vector3<f64>> = mesh
@@ -107,13 +125,22 @@ impl ContourEdges {
                     .map_or(0.0, |p| (p - pa).dot(&across).signum())
             };
             let first = side(e.opposite[0]);
-            // A fold: both faces on one side of the edge's projection; an open edge: its one
-            // face on one side. The silhouette's outside is the other side.
-            let silhouette = first != 0.0 && (e.faces == 1 || side(e.opposite[1]) == first);
-            if !silhouette {
+            if first == 0.0 {
                 continue;
             }
-            let normal = -first * across;
+            // A fold: both faces on one side of the edge's projection; an open edge: its one
+            // face on one side. The silhouette's outside is the other side. Where the region
+            // ends, its outside is the side of the face that is not in it.
+            let silhouette = e.faces == 1 || side(e.opposite[1]) == first;
+            let inside = region.and_then(|r| {
+                let (a, b) = (r[e.face[0] as usize], r[e.face[1] as usize]);
+                (e.faces == 2 && a != b).then_some(if a { first } else { -first })
+            });
+            let normal = match (silhouette, inside) {
+                (true, _) => -first * across,
+                (false, Some(inside)) => -inside * across,
+                (false, None) => continue,
+            };
             let n = (length / spacing_px).ceil().max(1.0) as usize;
             for i in 0..n {
                 let s = (i as f64 + 0.5) / n as f64;
@@ -138,6 +165,17 @@ impl ContourEdges {
 /// `tolerance_mm` in front of it. The tolerance is for the model's own surface, which near a
 /// silhouette comes closer to the camera the further inside one looks.
 pub fn visible(contour: &[ContourPoint], target: &Target, tolerance_mm: f64) -> Vec<ContourPoint> {
+    showing(contour, target, tolerance_mm, None)
+}
+
+/// [`visible`], keeping only the samples whose inside pixel shows `class` (the region's, for
+/// an [`ContourEdges::outline`]).
+pub fn showing(
+    contour: &[ContourPoint],
+    target: &Target,
+    tolerance_mm: f64,
+    class: Option<u8>,
+) -> Vec<ContourPoint> {
     let Some(rect) = target.rect else {
         return Vec::new();
     };
@@ -152,7 +190,8 @@ pub fn visible(contour: &[ContourPoint], target: &Target, tolerance_mm: f64) -> 
             }
             let i = (y - y0) as usize * rect.width as usize + (x - x0) as usize;
             let shown = target.inv_depth[i] as f64;
-            shown == 0.0 || 1.0 / shown >= 1.0 / c.inv_depth - tolerance_mm
+            let unhidden = shown == 0.0 || 1.0 / shown >= 1.0 / c.inv_depth - tolerance_mm;
+            unhidden && class.is_none_or(|k| target.class[i] == k)
         })
         .copied()
         .collect()
@@ -200,12 +239,30 @@ struct View<'a> {
 impl View<'_> {
     fn pixel(&self, p_world: &Vector3<f64>) -> Option<Vector2<f64>> {
         let pc = self.cam.camera_from_world.transform_point(p_world);
-        (pc.z > NEAR_MM).then(|| {
-            Vector2::new(
-                self.cam.fx * pc.x / pc.z + self.cam.cx,
-                self.cam.fy * pc.y / pc.z + self.cam.cy,
-            )
-        })
+        (pc.z > NEAR_MM).then(|| self.image(pc.x / pc.z, pc.y / pc.z))
+    }
+
+    /// The pixel of normalised coordinates (x, y), through the lens.
+    fn image(&self, x: f64, y: f64) -> Vector2<f64> {
+        let [u, v] = if self.cam.has_distortion() {
+            self.cam.distortion.apply(x, y)
+        } else {
+            [x, y]
+        };
+        Vector2::new(self.cam.fx * u + self.cam.cx, self.cam.fy * v + self.cam.cy)
+    }
+
+    /// ∂pixel/∂(x, y) of [`Self::image`]: the focal lengths, times the lens's derivative by
+    /// central differences (the lens models are smooth and cheap to evaluate).
+    fn image_jacobian(&self, x: f64, y: f64) -> nalgebra::Matrix2<f64> {
+        if !self.cam.has_distortion() {
+            return nalgebra::Matrix2::new(self.cam.fx, 0.0, 0.0, self.cam.fy);
+        }
+        let h = 1e-7;
+        let d = |dx: f64, dy: f64| self.image(x + dx, y + dy);
+        let cx = (d(h, 0.0) - d(-h, 0.0)) / (2.0 * h);
+        let cy = (d(0.0, h) - d(0.0, -h)) / (2.0 * h);
+        nalgebra::Matrix2::from_columns(&[cx, cy])
     }
 
     /// Pixel, 1/z and ∂pixel/∂ξ of a world point moved by `exp(ξ)` (left, in the world frame).
@@ -214,17 +271,11 @@ impl View<'_> {
         if pc.z <= NEAR_MM {
             return None;
         }
-        let (fx, fy) = (self.cam.fx, self.cam.fy);
         let iz = 1.0 / pc.z;
-        let pixel = Vector2::new(fx * pc.x * iz + self.cam.cx, fy * pc.y * iz + self.cam.cy);
-        let d_pixel_d_camera = Matrix2x3::new(
-            fx * iz,
-            0.0,
-            -fx * pc.x * iz * iz,
-            0.0,
-            fy * iz,
-            -fy * pc.y * iz * iz,
-        );
+        let (x, y) = (pc.x * iz, pc.y * iz);
+        let pixel = self.image(x, y);
+        let d_normalised_d_camera = Matrix2x3::new(iz, 0.0, -x * iz, 0.0, iz, -y * iz);
+        let d_pixel_d_camera = self.image_jacobian(x, y) * d_normalised_d_camera;
         // exp(ξ)·p ≈ p + ω × p + v = p − [p]×·ω + v.
         let mut d_world_d_xi = Matrix3x6::zeros();
         d_world_d_xi
@@ -335,6 +386,33 @@ mod tests {
             let err = (fd - j.column(k)).norm();
             assert!(
                 err < 1e-4 * (1.0 + fd.norm()),
+                "ξ[{k}]: {fd} vs {}",
+                j.column(k)
+            );
+        }
+    }
+
+    #[test]
+    fn through_a_lens_the_jacobian_is_still_the_projection_s_derivative() {
+        let cam = Camera {
+            distortion: Distortion::brown([-0.3, 0.12, 0.001, -0.002, 0.0]),
+            ..camera()
+        };
+        let view = View { cam: &cam };
+        let p = Vector3::new(30.0, -20.0, 140.0);
+        let (pixel, _, j) = view.point(&p).unwrap();
+        let expected = cam.project(&p).unwrap();
+        assert!((pixel - expected).norm() < 1e-9, "{pixel} vs {expected}");
+        for k in 0..6 {
+            let h = 1e-6;
+            let mut xi = Vector6::zeros();
+            xi[k] = h;
+            let plus = view.pixel(&Pose::exp(&xi).transform_point(&p)).unwrap();
+            let minus = view.pixel(&Pose::exp(&-xi).transform_point(&p)).unwrap();
+            let fd = (plus - minus) / (2.0 * h);
+            let err = (fd - j.column(k)).norm();
+            assert!(
+                err < 1e-3 * (1.0 + fd.norm()),
                 "ξ[{k}]: {fd} vs {}",
                 j.column(k)
             );

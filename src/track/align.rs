@@ -7,9 +7,9 @@
 
 use nalgebra::{Matrix6, Vector2, Vector6};
 
-use crate::energy::contour::{ContourEdges, ContourPoint, visible};
+use crate::energy::contour::{ContourEdges, ContourPoint, showing};
 use crate::energy::raster::render_target;
-use crate::energy::target::CLASS_BODY;
+use crate::energy::target::{CLASS_BODY, CLASS_BOI};
 use crate::geometry::{Camera, Pose};
 use crate::mesh::Mesh;
 
@@ -83,14 +83,19 @@ fn edge_offset(c: &ContourPoint, mask: &dyn Fn(Vector2<f64>) -> f64, reach: f64)
     best
 }
 
-/// Align `mesh` (its `edges`) from `start` to the masks of `views`.
+/// Align `mesh` (its `edges`) from `start` to the masks of `views`, the contour that
+/// `occluders` (other meshes at their poses) hide left out. A mesh with a boundary of interest
+/// aligns the outline of its visible BOI (the teeth, where the scan also holds gums the lips
+/// hide); one without, its silhouette.
 pub fn align(
-    mesh: &Mesh,
-    edges: &ContourEdges,
+    (mesh, edges): (&Mesh, &ContourEdges),
     start: Pose,
     views: &[MaskView],
+    occluders: &[(&Mesh, &Pose)],
     s: &AlignSettings,
 ) -> Aligned {
+    let region = mesh.boi.iter().any(|&b| b).then_some(mesh.boi.as_slice());
+    let class = region.map(|_| CLASS_BOI);
     let mut pose = start;
     let mut steps = 0;
     let mut samples = 0;
@@ -100,10 +105,16 @@ pub fn align(
             let mut g = Vector6::zeros();
             samples = 0;
             for v in views {
-                let mut contour = edges.contour(mesh, &pose, v.camera, s.spacing_px);
-                if s.self_occlusion {
-                    let depth = render_target(v.camera, &[(mesh, &pose, CLASS_BODY, CLASS_BODY)]);
-                    contour = visible(&contour, &depth, OCCLUSION_MM);
+                let mut contour = edges.outline(mesh, &pose, v.camera, s.spacing_px, region);
+                if s.self_occlusion || !occluders.is_empty() || region.is_some() {
+                    let mut items = vec![(mesh, &pose, CLASS_BODY, CLASS_BOI)];
+                    items.extend(
+                        occluders
+                            .iter()
+                            .map(|&(m, p)| (m, p, CLASS_BODY, CLASS_BODY)),
+                    );
+                    let depth = render_target(v.camera, &items);
+                    contour = showing(&contour, &depth, OCCLUSION_MM, class);
                 }
                 for c in contour {
                     let Some(d) = edge_offset(&c, v.mask, reach) else {
@@ -212,18 +223,24 @@ mod tests {
     }
 
     /// `mesh` aligned from `truth` moved by `offset`, in `cameras` whose masks show it at
-    /// `truth`: the pose's error (degrees, mm) before and after, and the steps.
+    /// `truth` (its visible BOI when it has one, as a teeth mask does; else all of it): the
+    /// pose's error (degrees, mm) before and after, and the steps.
     fn aligned(mesh: &Mesh, cameras: &[Camera], truth: &Pose, offset: Vector6<f64>) -> [f64; 5] {
+        let body = if mesh.boi.iter().any(|&b| b) {
+            CLASS_NONE
+        } else {
+            CLASS_BOI
+        };
         let masks: Vec<Vec<u8>> = cameras
             .iter()
-            .map(|c| render_target(c, &[(mesh, truth, CLASS_BODY, CLASS_BODY)]).class)
+            .map(|c| render_target(c, &[(mesh, truth, body, CLASS_BOI)]).class)
             .collect();
         let reads: Vec<Box<dyn Fn(Vector2<f64>) -> f64>> = masks
             .iter()
             .zip(cameras)
             .map(|(m, c)| {
                 let (w, h) = (c.width as usize, c.height as usize);
-                Box::new(move |x: Vector2<f64>| bilinear(m, w, h, |c| c != CLASS_NONE, x))
+                Box::new(move |x: Vector2<f64>| bilinear(m, w, h, |c| c == CLASS_BOI, x))
                     as Box<dyn Fn(Vector2<f64>) -> f64>
             })
             .collect();
@@ -238,7 +255,13 @@ mod tests {
         let start = Pose::exp(&offset).compose(truth);
         let edges = ContourEdges::of(mesh);
         let clock = std::time::Instant::now();
-        let found = align(mesh, &edges, start, &views, &AlignSettings::default());
+        let found = align(
+            (mesh, &edges),
+            start,
+            &views,
+            &[],
+            &AlignSettings::default(),
+        );
         let ms = clock.elapsed().as_secs_f64() * 1e3;
         let (rot, trans) = found.pose.distance_to(truth);
         let (rot0, trans0) = start.distance_to(truth);
@@ -287,6 +310,8 @@ mod tests {
         let truth = Pose::from_translation(Vector3::new(0.0, 0.0, -10.0));
         let offset = Vector6::new(0.03, 0.02, -0.02, 1.5, -1.0, 2.0);
         let [_, _, rot, trans, _] = aligned(&arch, &cameras, &truth, offset);
-        assert!(rot < 0.2 && trans < 0.2, "{rot:.3}° {trans:.3} mm");
+        // The teeth outline alone (silhouette and gum line) constrains the pose less than a
+        // whole silhouette, and a tooth's edge over the tooth behind it shows no mask edge.
+        assert!(rot < 0.5 && trans < 0.1, "{rot:.3}° {trans:.3} mm");
     }
 }
