@@ -168,8 +168,9 @@ pub fn visible(contour: &[ContourPoint], target: &Target, tolerance_mm: f64) -> 
     showing(contour, target, tolerance_mm, None)
 }
 
-/// [`visible`], keeping only the samples whose inside pixel shows `class` (the region's, for
-/// an [`ContourEdges::outline`]).
+/// [`visible`], keeping only the samples where the picture changes from `class` (the region's,
+/// for an [`ContourEdges::outline`]) inside to another class outside: where the region's edge
+/// can show in a mask. A tooth's outline over another tooth behind it shows none.
 pub fn showing(
     contour: &[ContourPoint],
     target: &Target,
@@ -179,19 +180,26 @@ pub fn showing(
     let Some(rect) = target.rect else {
         return Vec::new();
     };
+    let index = |p: Vector2<f64>| {
+        let (x, y) = (p.x.round(), p.y.round());
+        let (x0, y0) = (rect.x0 as f64, rect.y0 as f64);
+        let outside =
+            x < x0 || y < y0 || x >= x0 + rect.width as f64 || y >= y0 + rect.height as f64;
+        (!outside).then(|| (y - y0) as usize * rect.width as usize + (x - x0) as usize)
+    };
     contour
         .iter()
         .filter(|c| {
-            let inside = c.pixel - 0.75 * c.normal;
-            let (x, y) = (inside.x.round(), inside.y.round());
-            let (x0, y0) = (rect.x0 as f64, rect.y0 as f64);
-            if x < x0 || y < y0 || x >= x0 + rect.width as f64 || y >= y0 + rect.height as f64 {
+            let Some(i) = index(c.pixel - 0.75 * c.normal) else {
                 return false;
-            }
-            let i = (y - y0) as usize * rect.width as usize + (x - x0) as usize;
+            };
             let shown = target.inv_depth[i] as f64;
             let unhidden = shown == 0.0 || 1.0 / shown >= 1.0 / c.inv_depth - tolerance_mm;
-            unhidden && class.is_none_or(|k| target.class[i] == k)
+            let edge = class.is_none_or(|k| {
+                let beyond = index(c.pixel + 0.75 * c.normal).map(|j| target.class[j]);
+                target.class[i] == k && beyond != Some(k)
+            });
+            unhidden && edge
         })
         .copied()
         .collect()

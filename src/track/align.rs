@@ -266,6 +266,10 @@ mod tests {
         let (rot, trans) = found.pose.distance_to(truth);
         let (rot0, trans0) = start.distance_to(truth);
         eprintln!(
+            "error twist {:?}",
+            found.pose.compose(&truth.inverse()).log().as_slice()
+        );
+        eprintln!(
             "from {:.2}° {trans0:.2} mm to {:.3}° {trans:.3} mm in {} steps ({} samples, {ms:.1} ms)",
             rot0.to_degrees(),
             rot.to_degrees(),
@@ -296,6 +300,42 @@ mod tests {
         let offset = Vector6::new(0.05, -0.06, 0.04, 4.0, -3.0, 5.0);
         let [_, _, rot, trans, _] = aligned(&block(), &cameras, &truth, offset);
         assert!(rot < 0.1 && trans < 0.1, "{rot:.3}° {trans:.3} mm");
+    }
+
+    /// At the true pose every sample of the teeth outline finds the mask's edge where it is,
+    /// to the mask's pixel; samples whose region continues beyond them (a tooth over the
+    /// tooth behind) are left out, as they show no edge.
+    #[test]
+    fn at_the_true_pose_the_outline_finds_the_teeth_mask_s_edge_where_it_is() {
+        let cameras = [
+            looking_at_origin(Vector3::new(0.0, 0.0, 200.0)),
+            looking_at_origin(Vector3::new(90.0, 10.0, 180.0)),
+        ];
+        let mesh = crate::anatomy::procedural_arch(true);
+        let truth = Pose::from_translation(Vector3::new(0.0, 0.0, -10.0));
+        let edges = ContourEdges::of(&mesh);
+        for cam in &cameras {
+            let m = render_target(cam, &[(&mesh, &truth, CLASS_NONE, CLASS_BOI)]).class;
+            let read = |x: Vector2<f64>| bilinear(&m, 640, 480, |c| c == CLASS_BOI, x);
+            let all = edges.outline(&mesh, &truth, cam, 2.0, Some(&mesh.boi));
+            let depth = render_target(cam, &[(&mesh, &truth, CLASS_BODY, CLASS_BOI)]);
+            let shown = showing(&all, &depth, OCCLUSION_MM, Some(CLASS_BOI));
+            let mut ds: Vec<f64> = shown
+                .iter()
+                .filter_map(|c| edge_offset(c, &read, 4.0))
+                .map(f64::abs)
+                .collect();
+            ds.sort_by(f64::total_cmp);
+            let p95 = ds[ds.len() * 19 / 20];
+            eprintln!(
+                "{} of {} samples found an edge; |offset| median {:.3}, p95 {p95:.3} px",
+                ds.len(),
+                shown.len(),
+                ds[ds.len() / 2]
+            );
+            assert!(ds.len() * 10 >= shown.len() * 9 && ds.len() > 100);
+            assert!(p95 < 0.75, "p95 {p95} px");
+        }
     }
 
     #[test]
