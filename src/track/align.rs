@@ -7,9 +7,16 @@
 
 use nalgebra::{Matrix6, Vector2, Vector6};
 
-use crate::energy::contour::{ContourEdges, ContourPoint, showing};
+use super::penalties::Penalties;
+use super::search::Found;
+use crate::arch::{Arch, ArchPoses};
+use crate::capture::masks::MOUTH_BIT;
+use crate::capture::{Capture, FrameMasks, LabelMask};
+use crate::energy::contour::{ContourEdges, ContourPoint, bilinear, showing};
 use crate::energy::raster::render_target;
 use crate::energy::target::{CLASS_BODY, CLASS_BOI};
+use crate::energy::{EnergyEngine, Weights};
+use crate::error::Result;
 use crate::geometry::{Camera, Pose};
 use crate::mesh::Mesh;
 
@@ -22,6 +29,10 @@ const OCCLUSION_MM: f64 = 2.0;
 pub struct MaskView<'a> {
     pub camera: &'a Camera,
     pub mask: &'a dyn Fn(Vector2<f64>) -> f64,
+    /// How much a model drawn past the mask's edge at a pixel costs against one short of it
+    /// (1): the paper's λ where the mask cannot tell teeth from what hides them (lips), the
+    /// over-mouth weight where it labels the mouth interior. `None`: 1 everywhere.
+    pub beyond: Option<&'a dyn Fn(Vector2<f64>) -> f64>,
 }
 
 #[derive(Debug, Clone)]
@@ -124,7 +135,12 @@ pub fn align(
                     // Tukey's weight on the offset, relative to the reach: an edge found far
                     // off is as likely another edge.
                     let u = d / reach;
-                    let w = (1.0 - u * u).max(0.0).powi(2) * c.length;
+                    // A model past the edge (d < 0) costs what the picture beyond says.
+                    let cost = match (v.beyond, d < 0.0) {
+                        (Some(beyond), true) => beyond(c.pixel + d * c.normal + c.normal),
+                        _ => 1.0,
+                    };
+                    let w = cost * (1.0 - u * u).max(0.0).powi(2) * c.length;
                     h += w * row * row.transpose();
                     g += w * d * row;
                     samples += 1;
@@ -158,12 +174,107 @@ pub fn align(
     }
 }
 
+/// One arch's alignment in a tracked frame: its masks, the other arch as an occluder, and the
+/// objective the result is scored by (as the paper's search scores its own).
+pub struct ArchAlign<'a> {
+    pub capture: &'a Capture,
+    pub masks: &'a FrameMasks,
+    /// The arch's contour edges ([`ContourEdges::of`] its mesh).
+    pub edges: &'a ContourEdges,
+    pub arch: Arch,
+    /// Both arches' poses: the alignment starts from `arch`'s and holds the other there.
+    pub from: ArchPoses,
+    pub penalties: &'a Penalties,
+    pub weights: Weights,
+}
+
+/// Align `q.arch` to its masks in every camera that has one, then score the pose found with
+/// the energy (one evaluation), as [`super::search`] reports it.
+pub fn align_arch(engine: &dyn EnergyEngine, q: &ArchAlign) -> Result<Found> {
+    let capture = q.capture;
+    let (mesh, other) = match q.arch {
+        Arch::Upper => (capture.upper(), capture.lower()),
+        Arch::Lower => (capture.lower(), capture.upper()),
+    };
+    let bit = q.arch.mask_bit();
+    let cameras: Vec<(Camera, &LabelMask)> = capture
+        .cameras()
+        .iter()
+        .zip(&q.masks.masks)
+        .filter_map(|(c, m)| Some((c.mask_camera()?, m.as_ref()?)))
+        .collect();
+    let reads: Vec<Box<dyn Fn(Vector2<f64>) -> f64 + '_>> = cameras
+        .iter()
+        .map(|(_, m)| {
+            let (w, h) = (m.width as usize, m.height as usize);
+            Box::new(move |x: Vector2<f64>| bilinear(&m.data, w, h, |v| v & bit != 0, x))
+                as Box<dyn Fn(Vector2<f64>) -> f64>
+        })
+        .collect();
+    // Past the mask's edge a model costs the over-mouth weight where the mask labels the
+    // mouth interior, and the boundary term's λ elsewhere (lips may hide teeth there).
+    let (lambda, mouth) = (q.weights.lambda, q.weights.mouth);
+    let beyond: Vec<Box<dyn Fn(Vector2<f64>) -> f64 + '_>> = cameras
+        .iter()
+        .map(|(_, m)| {
+            let (w, h) = (m.width as i64, m.height as i64);
+            Box::new(move |x: Vector2<f64>| {
+                let (i, j) = (x.x.round() as i64, x.y.round() as i64);
+                let inside = i >= 0 && j >= 0 && i < w && j < h;
+                let label = if inside {
+                    m.data[(j * w + i) as usize]
+                } else {
+                    0
+                };
+                if label & MOUTH_BIT != 0 {
+                    mouth
+                } else {
+                    lambda
+                }
+            }) as Box<dyn Fn(Vector2<f64>) -> f64>
+        })
+        .collect();
+    let views: Vec<MaskView> = cameras
+        .iter()
+        .zip(&reads)
+        .zip(&beyond)
+        .map(|(((camera, _), mask), beyond)| MaskView {
+            camera,
+            mask: mask.as_ref(),
+            beyond: Some(beyond.as_ref()),
+        })
+        .collect();
+    let other_pose = *q.from.get(q.arch.other());
+    let found = align(
+        (mesh, q.edges),
+        *q.from.get(q.arch),
+        &views,
+        &[(other, &other_pose)],
+        &AlignSettings::default(),
+    );
+    // The start scored too: where the steps made the objective worse (too few samples to
+    // hold the pose, an edge that is another's), the start stands.
+    let candidates = [q.from.with(q.arch, found.pose), q.from];
+    let energies = engine.evaluate(q.arch, &candidates)?;
+    let scored = candidates
+        .iter()
+        .zip(energies)
+        .map(|(poses, energy)| Found {
+            pose: *poses.get(q.arch),
+            objective: energy.objective(&q.weights) + q.penalties.of(poses),
+            energy,
+            evaluations: 2,
+        });
+    Ok(scored
+        .min_by(|a, b| a.objective.total_cmp(&b.objective))
+        .expect("two candidates"))
+}
+
 #[cfg(test)]
 mod tests {
     use nalgebra::{Rotation3, Vector3};
 
     use super::*;
-    use crate::energy::contour::bilinear;
     use crate::energy::target::CLASS_NONE;
     use crate::geometry::{Distortion, so3_exp};
 
@@ -250,6 +361,7 @@ mod tests {
             .map(|(camera, mask)| MaskView {
                 camera,
                 mask: mask.as_ref(),
+                beyond: None,
             })
             .collect();
         let start = Pose::exp(&offset).compose(truth);

@@ -18,7 +18,7 @@ pub mod sequence;
 pub mod session;
 pub mod state;
 
-pub use search::{ArchSearch, Found, SearchSettings, search};
+pub use search::{ArchSearch, Found, SearchSettings, Solver, search};
 pub use sequence::{
     FrameResult, LabelledSettings, MaskSource, Status, TrackSettings, track_frames,
 };

@@ -56,6 +56,27 @@ pub struct SearchSettings {
     /// the region the lips hide for free. 0 gives the paper's E; masks without the label
     /// have no such pixels.
     pub mouth_weight: f64,
+    /// How each arch's pose is found from its starts: `paper`, the derivative-free search of
+    /// the paper's energy (finite differences, golden section, local sampling), or `contour`,
+    /// Gauss-Newton steps that bring the arch's teeth outline onto its masks' edges
+    /// ([`super::align`]), experimental.
+    #[serde(skip_serializing_if = "Solver::is_paper")]
+    pub solver: Solver,
+}
+
+/// See [`SearchSettings::solver`].
+#[derive(Debug, Clone, Copy, Default, PartialEq, Eq, serde::Serialize, serde::Deserialize)]
+#[serde(rename_all = "kebab-case")]
+pub enum Solver {
+    #[default]
+    Paper,
+    Contour,
+}
+
+impl Solver {
+    fn is_paper(&self) -> bool {
+        *self == Solver::Paper
+    }
 }
 
 impl Default for SearchSettings {
@@ -76,6 +97,7 @@ impl Default for SearchSettings {
             lambda: crate::energy::DEFAULT_LAMBDA,
             cross_weight: 1.0,
             mouth_weight: 1.0,
+            solver: Solver::Paper,
         }
     }
 }

@@ -8,14 +8,16 @@ use std::time::Instant;
 
 use nalgebra::Vector3;
 
+use super::align::{ArchAlign, align_arch};
 use super::contact::{Contact, ContactSettings};
 use super::manifold::JawManifold;
 use super::penalties::Penalties;
 use super::prior::JawPrior;
-use super::search::{ArchSearch, RADIUS_MM, SearchSettings, search};
+use super::search::{ArchSearch, RADIUS_MM, SearchSettings, Solver, search};
 use super::state::{TrackState, as_written};
 use crate::arch::{Arch, ArchPoses};
 use crate::capture::{Capture, FrameMasks, MaskMode};
+use crate::energy::contour::ContourEdges;
 use crate::energy::{Energy, EnergyEngine};
 use crate::error::Result;
 pub use crate::formats::Status;
@@ -297,12 +299,19 @@ pub fn track_frames(
                 settings.jaw_manifold_tolerance_mm,
             )
         });
+    let edges = (settings.search.solver == Solver::Contour).then(|| {
+        [
+            ContourEdges::of(capture.upper()),
+            ContourEdges::of(capture.lower()),
+        ]
+    });
     let run = Run {
         capture,
         settings,
         centres,
         prior,
         penalties: Penalties { contact, manifold },
+        edges,
     };
     let mut step = |frame: u32, masks: FrameMasks, started: Instant, state: &mut TrackState| {
         let result = track_frame(&run, engine, frame, &masks, state)?;
@@ -389,6 +398,8 @@ struct Run<'a> {
     centres: [Vector3<f64>; 2],
     prior: JawPrior,
     penalties: Penalties,
+    /// Each arch's contour edges, for the contour solver.
+    edges: Option<[ContourEdges; 2]>,
 }
 
 fn track_frame(
@@ -452,17 +463,31 @@ fn track_frame(
                     | (pass as u64) << 8
                     | (k as u64) << 1
                     | (arch == Arch::Lower) as u64;
-                let found = search(
-                    &*engine,
-                    &ArchSearch {
-                        arch,
-                        from: *start,
-                        centre: &run.centres[arch.index()],
-                        penalties: &run.penalties,
-                        settings: &settings.search,
-                        seed,
-                    },
-                )?;
+                let found = match &run.edges {
+                    None => search(
+                        &*engine,
+                        &ArchSearch {
+                            arch,
+                            from: *start,
+                            centre: &run.centres[arch.index()],
+                            penalties: &run.penalties,
+                            settings: &settings.search,
+                            seed,
+                        },
+                    )?,
+                    Some(edges) => align_arch(
+                        &*engine,
+                        &ArchAlign {
+                            capture,
+                            masks,
+                            edges: &edges[arch.index()],
+                            arch,
+                            from: *start,
+                            penalties: &run.penalties,
+                            weights,
+                        },
+                    )?,
+                };
                 evaluations += found.evaluations;
                 if best.is_none_or(|(e, _)| found.objective < e) {
                     best = Some((found.objective, found.pose));
