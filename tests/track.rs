@@ -111,6 +111,50 @@ fn a_short_clean_sequence_is_tracked_accurately() {
     assert!(!t.path().join("tracks.json.journal").exists());
 }
 
+/// The experimental contour solver (`search.solver = contour`) tracks the same clean frames
+/// within a few tenths of a millimetre, with far fewer energy evaluations than the paper's
+/// search (docs/energy.md has the figures).
+#[test]
+fn the_contour_solver_tracks_clean_frames_with_few_evaluations() {
+    let t = tempfile::tempdir().unwrap();
+    let (paper, contour) = (t.path().join("paper.json"), t.path().join("contour.json"));
+    let cap = capture48();
+    // Energy evaluations per frame, as `track` reports them.
+    let evaluations = |out: &std::process::Output| -> u64 {
+        let text = String::from_utf8_lossy(&out.stdout);
+        text.split(" energy evaluations per frame")
+            .next()
+            .and_then(|head| head.rsplit('(').next())
+            .and_then(|n| n.trim().parse().ok())
+            .unwrap_or_else(|| panic!("no evaluation count in {text}"))
+    };
+    let run = |out: &Path, extra: &[&str]| {
+        let mut args = vec!["track", cap.to_str().unwrap(), "-o", out.to_str().unwrap()];
+        args.extend(["--frames", "0..6"]);
+        args.extend(extra);
+        jawtrack(&args)
+    };
+    let by_paper = evaluations(&run(&paper, &[]));
+    let settings = r#"{"search": {"solver": "contour"}}"#;
+    let by_contour = evaluations(&run(&contour, &["--settings", settings]));
+    let s = score(cap, &contour);
+    assert_eq!(s["frames"], 6);
+    for part in ["upper", "lower", "jaw"] {
+        let m = s[part]["mean_vertex_mm"]["median"].as_f64().unwrap();
+        assert!(m < 0.5, "{part}: median {m} mm");
+    }
+    assert!(
+        by_contour * 2 < by_paper,
+        "{by_contour} evaluations a frame against {by_paper}"
+    );
+    // The fingerprint tells the two runs apart (resume may not mix them).
+    let fp = |path: &Path| -> String {
+        let t: TracksJson = serde_json::from_str(&std::fs::read_to_string(path).unwrap()).unwrap();
+        t.fingerprint.unwrap()
+    };
+    assert_ne!(fp(&paper), fp(&contour));
+}
+
 fn poses_of(path: &Path) -> Vec<serde_json::Value> {
     let t: serde_json::Value =
         serde_json::from_str(&std::fs::read_to_string(path).unwrap()).unwrap();
