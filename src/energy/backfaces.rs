@@ -141,26 +141,7 @@ mod tests {
 
     /// A unit cube, outward faces (right-hand rule).
     fn cube() -> Mesh {
-        let positions = (0..8)
-            .map(|i| [(i & 1) as f32, (i >> 1 & 1) as f32, (i >> 2 & 1) as f32])
-            .collect();
-        let quads = [
-            [0, 2, 3, 1], // z = 0, normal -z
-            [4, 5, 7, 6], // z = 1, +z
-            [0, 1, 5, 4], // y = 0, -y
-            [2, 6, 7, 3], // y = 1, +y
-            [0, 4, 6, 2], // x = 0, -x
-            [1, 3, 7, 5], // x = 1, +x
-        ];
-        let triangles: Vec<[u32; 3]> = quads
-            .iter()
-            .flat_map(|q| [[q[0], q[1], q[2]], [q[0], q[2], q[3]]])
-            .collect();
-        Mesh {
-            boi: vec![false; triangles.len()],
-            positions,
-            triangles,
-        }
+        crate::mesh::cuboid([0.0; 3], [1.0; 3])
     }
 
     #[test]

@@ -322,33 +322,7 @@ mod tests {
 
     /// A cube of side `s` centred at the origin, wound outwards.
     fn cube(s: f32) -> Mesh {
-        let h = s / 2.0;
-        let positions = (0..8)
-            .map(|i| {
-                [
-                    if i & 1 == 0 { -h } else { h },
-                    if i & 2 == 0 { -h } else { h },
-                    if i & 4 == 0 { -h } else { h },
-                ]
-            })
-            .collect();
-        let quads = [
-            [0, 2, 3, 1],
-            [4, 5, 7, 6],
-            [0, 1, 5, 4],
-            [2, 6, 7, 3],
-            [0, 4, 6, 2],
-            [1, 3, 7, 5],
-        ];
-        let triangles: Vec<[u32; 3]> = quads
-            .iter()
-            .flat_map(|q| [[q[0], q[1], q[2]], [q[0], q[2], q[3]]])
-            .collect();
-        Mesh {
-            boi: vec![false; triangles.len()],
-            positions,
-            triangles,
-        }
+        crate::mesh::cuboid([-s / 2.0; 3], [s / 2.0; 3])
     }
 
     /// The cube 150 mm in front of the camera, turned so that three faces show.

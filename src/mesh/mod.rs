@@ -364,3 +364,30 @@ fn read_face_list(path: &Path, face_count: usize) -> Result<Vec<bool>> {
     }
     Ok(flags)
 }
+
+/// The box `[lo, hi]` as twelve triangles wound outwards (right-hand rule), vertex `i` at
+/// (bit 0: x, bit 1: y, bit 2: z) of `hi` where the bit is set and of `lo` where not: the
+/// tests' closed mesh.
+#[cfg(test)]
+pub(crate) fn cuboid(lo: [f32; 3], hi: [f32; 3]) -> Mesh {
+    let positions = (0..8)
+        .map(|i| std::array::from_fn(|k| if i >> k & 1 == 1 { hi[k] } else { lo[k] }))
+        .collect();
+    let quads = [
+        [0, 2, 3, 1], // z = lo, normal -z
+        [4, 5, 7, 6], // z = hi, +z
+        [0, 1, 5, 4], // y = lo, -y
+        [2, 6, 7, 3], // y = hi, +y
+        [0, 4, 6, 2], // x = lo, -x
+        [1, 3, 7, 5], // x = hi, +x
+    ];
+    let triangles: Vec<[u32; 3]> = quads
+        .iter()
+        .flat_map(|q| [[q[0], q[1], q[2]], [q[0], q[2], q[3]]])
+        .collect();
+    Mesh {
+        boi: vec![false; triangles.len()],
+        positions,
+        triangles,
+    }
+}

@@ -304,33 +304,7 @@ mod tests {
 
     /// An uneven box (no symmetry a silhouette could confuse), wound outwards.
     fn block() -> Mesh {
-        let (a, b, c) = (30.0f32, 18.0f32, 12.0f32);
-        let positions = (0..8)
-            .map(|i| {
-                [
-                    if i & 1 == 0 { -a } else { a * 0.7 },
-                    if i & 2 == 0 { -b } else { b },
-                    if i & 4 == 0 { -c } else { c * 1.3 },
-                ]
-            })
-            .collect();
-        let quads = [
-            [0, 2, 3, 1],
-            [4, 5, 7, 6],
-            [0, 1, 5, 4],
-            [2, 6, 7, 3],
-            [0, 4, 6, 2],
-            [1, 3, 7, 5],
-        ];
-        let triangles: Vec<[u32; 3]> = quads
-            .iter()
-            .flat_map(|q| [[q[0], q[1], q[2]], [q[0], q[2], q[3]]])
-            .collect();
-        Mesh {
-            boi: vec![false; triangles.len()],
-            positions,
-            triangles,
-        }
+        crate::mesh::cuboid([-30.0, -18.0, -12.0], [21.0, 18.0, 15.6])
     }
 
     /// `mesh` aligned from `truth` moved by `offset`, in `cameras` whose masks show it at

@@ -13,7 +13,7 @@ use super::contact::{Contact, ContactSettings};
 use super::manifold::JawManifold;
 use super::penalties::Penalties;
 use super::prior::JawPrior;
-use super::search::{ArchSearch, RADIUS_MM, SearchSettings, Solver, search};
+use super::search::{ArchSearch, Found, RADIUS_MM, SearchSettings, Solver, search};
 use super::state::{TrackState, as_written};
 use crate::arch::{Arch, ArchPoses};
 use crate::capture::{Capture, FrameMasks, MaskMode};
@@ -402,6 +402,45 @@ struct Run<'a> {
     edges: Option<[ContourEdges; 2]>,
 }
 
+impl Run<'_> {
+    /// `arch`'s pose from the start `from` (both arches), by the run's solver.
+    fn find(
+        &self,
+        engine: &dyn EnergyEngine,
+        masks: &FrameMasks,
+        arch: Arch,
+        from: ArchPoses,
+        seed: u64,
+    ) -> Result<Found> {
+        let search_settings = &self.settings.search;
+        match &self.edges {
+            None => search(
+                engine,
+                &ArchSearch {
+                    arch,
+                    from,
+                    centre: &self.centres[arch.index()],
+                    penalties: &self.penalties,
+                    settings: search_settings,
+                    seed,
+                },
+            ),
+            Some(edges) => align_arch(
+                engine,
+                &ArchAlign {
+                    capture: self.capture,
+                    masks,
+                    edges: &edges[arch.index()],
+                    arch,
+                    from,
+                    penalties: &self.penalties,
+                    weights: search_settings.weights(),
+                },
+            ),
+        }
+    }
+}
+
 fn track_frame(
     run: &Run,
     engine: &mut dyn EnergyEngine,
@@ -463,31 +502,7 @@ fn track_frame(
                     | (pass as u64) << 8
                     | (k as u64) << 1
                     | (arch == Arch::Lower) as u64;
-                let found = match &run.edges {
-                    None => search(
-                        &*engine,
-                        &ArchSearch {
-                            arch,
-                            from: *start,
-                            centre: &run.centres[arch.index()],
-                            penalties: &run.penalties,
-                            settings: &settings.search,
-                            seed,
-                        },
-                    )?,
-                    Some(edges) => align_arch(
-                        &*engine,
-                        &ArchAlign {
-                            capture,
-                            masks,
-                            edges: &edges[arch.index()],
-                            arch,
-                            from: *start,
-                            penalties: &run.penalties,
-                            weights,
-                        },
-                    )?,
-                };
+                let found = run.find(&*engine, masks, arch, *start, seed)?;
                 evaluations += found.evaluations;
                 if best.is_none_or(|(e, _)| found.objective < e) {
                     best = Some((found.objective, found.pose));
