@@ -55,7 +55,7 @@ pub struct AlignSettings {
 impl Default for AlignSettings {
     fn default() -> Self {
         AlignSettings {
-            reaches_px: vec![16.0, 8.0, 4.0, 2.0, 1.0],
+            reaches_px: vec![8.0, 4.0, 2.0, 1.0, 1.0],
             steps: 2,
             spacing_px: 2.0,
             damping: [1e3, 1.0],
