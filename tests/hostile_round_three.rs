@@ -8,7 +8,6 @@ use std::io::{Read, Write};
 use std::net::TcpStream;
 use std::path::{Path, PathBuf};
 use std::process::Command;
-use std::sync::OnceLock;
 use std::time::{Duration, Instant};
 
 use common::{
@@ -19,35 +18,8 @@ fn s(p: &Path) -> &str {
     p.to_str().unwrap()
 }
 
-/// A synthetic capture and a rig learned on it, made once per test binary.
-struct Fixture {
-    _dir: tempfile::TempDir,
-    capture: PathBuf,
-    rig: PathBuf,
-}
-
-fn fixture() -> &'static Fixture {
-    static F: OnceLock<Fixture> = OnceLock::new();
-    F.get_or_init(|| {
-        let dir = tempfile::tempdir().unwrap();
-        let capture = dir.path().join("cap");
-        ok(&["synth", s(&capture), "--frames", "40"]);
-        let rig = dir.path().join("rig.json");
-        ok(&[
-            "rig",
-            "learn",
-            s(&capture.join("gt/poses.json")),
-            "--mesh",
-            s(&capture.join("meshes/mandible.obj")),
-            "-o",
-            s(&rig),
-        ]);
-        Fixture {
-            _dir: dir,
-            capture,
-            rig,
-        }
-    })
+fn fixture() -> &'static common::RigFixture {
+    common::rig_fixture()
 }
 
 // ---- the page's server ----

@@ -14,7 +14,6 @@ use common::ok;
 
 use std::path::{Path, PathBuf};
 use std::process::Command;
-use std::sync::OnceLock;
 
 use common::browser::{Browser, serve};
 use serde_json::{Value, json};
@@ -37,35 +36,8 @@ fn have_browser() -> bool {
     found
 }
 
-/// A capture with ground truth and a rig learned on it, made once per test binary.
-struct Fixture {
-    _dir: tempfile::TempDir,
-    capture: PathBuf,
-    rig: PathBuf,
-}
-
-fn fixture() -> &'static Fixture {
-    static F: OnceLock<Fixture> = OnceLock::new();
-    F.get_or_init(|| {
-        let dir = tempfile::tempdir().unwrap();
-        let capture = dir.path().join("cap");
-        ok(&["synth", s(&capture), "--frames", "40"]);
-        let rig = dir.path().join("rig.json");
-        ok(&[
-            "rig",
-            "learn",
-            s(&capture.join("gt/poses.json")),
-            "--mesh",
-            s(&capture.join("meshes/mandible.obj")),
-            "-o",
-            s(&rig),
-        ]);
-        Fixture {
-            _dir: dir,
-            capture,
-            rig,
-        }
-    })
+fn fixture() -> &'static common::RigFixture {
+    common::rig_fixture()
 }
 
 fn f64s(v: &Value) -> Vec<f64> {

@@ -287,3 +287,40 @@ pub fn have_ffmpeg() -> bool {
     }
     found
 }
+
+/// A synthetic capture (40 frames) and a rig learned on its ground truth, made once per test
+/// binary.
+pub struct RigFixture {
+    _dir: tempfile::TempDir,
+    pub capture: PathBuf,
+    pub rig: PathBuf,
+}
+
+pub fn rig_fixture() -> &'static RigFixture {
+    static F: OnceLock<RigFixture> = OnceLock::new();
+    F.get_or_init(|| {
+        let dir = tempfile::tempdir().unwrap();
+        let capture = dir.path().join("cap");
+        let s = |p: &Path| p.to_str().unwrap().to_owned();
+        ok(&["synth", &s(&capture), "--frames", "40"]);
+        let rig = dir.path().join("rig.json");
+        let (poses, mesh) = (
+            capture.join("gt/poses.json"),
+            capture.join("meshes/mandible.obj"),
+        );
+        ok(&[
+            "rig",
+            "learn",
+            &s(&poses),
+            "--mesh",
+            &s(&mesh),
+            "-o",
+            &s(&rig),
+        ]);
+        RigFixture {
+            _dir: dir,
+            capture,
+            rig,
+        }
+    })
+}
