@@ -167,7 +167,7 @@ fn bad_face_sequences_are_refused_with_the_file_and_the_field() {
 #[test]
 fn the_mapping_beats_the_baseline_and_retargeting_helps() {
     let subjects: Vec<Subject> = ["s1", "s2", "s3"].iter().map(|n| load(n)).collect();
-    let e = evaluate(Path::new("set"), &subjects, &quick(), &|_| {}).unwrap();
+    let e = evaluate(Path::new("set"), &subjects, &quick(), false, &|_| {}).unwrap();
     for s in &e.subjects {
         // Margins well outside the figures measured on this set (README has the real ones).
         assert!(
@@ -196,6 +196,36 @@ fn the_mapping_beats_the_baseline_and_retargeting_helps() {
             s.multi_subject_mm
         );
         assert_eq!(s.series.multi_subject.len(), 240);
+        // Retargeting does not make a source worse than it was uncalibrated, and the mapping
+        // of several is about as good as the best single one (known only with the truth).
+        assert!(
+            s.retargeted_mm < s.uncalibrated_mm * 1.1,
+            "{}: retargeted {} vs uncalibrated {}",
+            s.name,
+            s.retargeted_mm,
+            s.uncalibrated_mm
+        );
+        assert!(
+            s.multi_subject_mm < s.retargeted_mm * 1.3,
+            "{}: multi-subject {} vs best single {}",
+            s.name,
+            s.multi_subject_mm,
+            s.retargeted_mm
+        );
+        let weights: f64 = s.multi_subject_weights.iter().map(|w| w.1).sum();
+        assert!(
+            (weights - 1.0).abs() < 1e-9,
+            "{:?}",
+            s.multi_subject_weights
+        );
+        assert_eq!(
+            s.multi_subject_weights.len(),
+            3,
+            "two sources and the pooled mapping"
+        );
+        assert!(
+            ["retargeted", "multi-subject", "uncalibrated", "baseline"].contains(&s.won.as_str())
+        );
     }
     let mean_un: f64 = e.subjects.iter().map(|s| s.uncalibrated_mm).sum::<f64>();
     let mean_re: f64 = e.subjects.iter().map(|s| s.retargeted_mm).sum::<f64>();
@@ -367,7 +397,7 @@ fn a_set_written_by_another_program_is_read_and_predicted() {
         })
         .collect();
     assert_eq!(subjects.len(), 3);
-    let e = evaluate(Path::new("set"), &subjects, &quick(), &|_| {}).unwrap();
+    let e = evaluate(Path::new("set"), &subjects, &quick(), false, &|_| {}).unwrap();
     for s in &e.subjects {
         assert!(s.baseline_mm > 3.0, "{}: {}", s.name, s.baseline_mm);
         assert!(

@@ -28,10 +28,14 @@ pub enum Command {
         settings: SettingsArg,
     },
     /// Carry a model to a new subject from its five calibration poses (face.json
-    /// `calibration`, their poses in jaw.json).
+    /// `calibration`, their poses in jaw.json), or from the teeth tracker's confident frames
+    /// (`--tracks`: up to 24, spread over the motion; the better calibration).
     Retarget {
         model: PathBuf,
         face: PathBuf,
+        /// tracks.json of the same capture (teeth tracker): its `ok` frames calibrate.
+        #[arg(long)]
+        tracks: Option<PathBuf>,
         #[arg(short, long)]
         out: PathBuf,
         #[command(flatten)]
@@ -68,6 +72,11 @@ pub enum Command {
         /// Write a plot of the error over frames (SVG), one panel per subject.
         #[arg(long)]
         plot: Option<PathBuf>,
+        /// Also measure the multi-subject mapping carried with 10 and 24 calibration poses
+        /// (the five, then frames spread over the sequence, as the teeth tracker gives them);
+        /// several times the work.
+        #[arg(long)]
+        curve: bool,
         #[command(flatten)]
         settings: SettingsArg,
     },
@@ -144,9 +153,10 @@ pub fn run(c: Command) -> anyhow::Result<()> {
         Command::Retarget {
             model,
             face,
+            tracks,
             out,
             settings,
-        } => retarget(&model, &face, &out, &settings),
+        } => retarget(&model, &face, tracks.as_deref(), &out, &settings),
         Command::Predict { model, face, out } => predict(&model, &face, &out),
         Command::Fill {
             model,
@@ -159,8 +169,9 @@ pub fn run(c: Command) -> anyhow::Result<()> {
             dir,
             json,
             plot,
+            curve,
             settings,
-        } => eval(&dir, json, plot.as_deref(), &settings),
+        } => eval(&dir, json, plot.as_deref(), curve, &settings),
     }
 }
 
@@ -207,29 +218,73 @@ fn learn(
     Ok(())
 }
 
-/// `skin retarget`: carry the model to a new subject from its calibration poses and write it.
-fn retarget(model: &Path, face: &Path, out: &Path, settings: &SettingsArg) -> anyhow::Result<()> {
+/// `skin retarget`: carry the model to a new subject from its calibration poses, or from the
+/// confident frames of a tracks.json, and write it.
+fn retarget(
+    model: &Path,
+    face: &Path,
+    tracks: Option<&Path>,
+    out: &Path,
+    settings: &SettingsArg,
+) -> anyhow::Result<()> {
     let settings = settings.read()?;
-    guard(out, &[model], &[face])?;
+    let reads: Vec<&Path> = [Some(model), tracks].into_iter().flatten().collect();
+    guard(out, &reads, &[face])?;
     let (m, target) = model_and_face(model, face)?;
-    let (r, report) = retarget_to(&m, &target, &settings.retarget)?;
+    let (r, report) = match tracks {
+        Some(t) => {
+            let tracked = jawtrack::formats::read_tracks(t)?;
+            let (r, fr) = jawtrack::skin::fill::retarget_from_tracks(
+                &m,
+                &target,
+                &tracked,
+                t,
+                &settings.retarget,
+            )?;
+            println!(
+                "calibrated on {} of the {} confident frames of {} ({:?})",
+                fr.calibration_frames.len(),
+                fr.teeth_frames,
+                t.display(),
+                fr.calibration_frames
+            );
+            if !fr.left_out.is_empty() {
+                println!(
+                    "left out of the calibration, their teeth pose far from what the skin says: frames {:?}",
+                    fr.left_out
+                );
+            }
+            (r, fr.retarget)
+        }
+        None => retarget_to(&m, &target, &settings.retarget)?,
+    };
     write_json_atomic(out, &r)?;
     println!(
-        "retargeted to {} from its calibration poses: Σ|Φ − B|² {:.3} → {:.3} mm² in {} steps",
+        "retargeted to {}: Σ|Φ − B|² {:.3} → {:.3} mm² in {} steps",
         target.name, report.cost_before, report.cost_after, report.iterations
     );
-    if !report.cross_validated_mm.is_empty() {
-        println!(
-            "cross-validated on the calibration poses (λ x {:?}, then none): {:?} mm; chose {}",
-            jawtrack::skin::retarget::LAMBDA_SCALES,
-            report.cross_validated_mm,
-            report
-                .lambda_scale
-                .map_or("no retargeting".to_string(), |k| format!("λ x {k}"))
-        );
-    }
+    print_choice(&report);
     println!("wrote {}", out.display());
     Ok(())
+}
+
+/// Say how far the mapping was carried and, when the calibration poses chose, what each
+/// candidate scored on the poses left out.
+fn print_choice(report: &jawtrack::skin::retarget::RetargetReport) {
+    let scores: Vec<String> = report
+        .candidates
+        .iter()
+        .map(|c| format!("{} {:.3} ± {:.3}", c.carry, c.mm, c.standard_error_mm))
+        .collect();
+    if scores.is_empty() {
+        println!("carried: {}", report.carried);
+    } else {
+        println!(
+            "carried: {} (bone points on each calibration pose left out, mm: {}; the simplest within one standard error of the best)",
+            report.carried,
+            scores.join(", ")
+        );
+    }
 }
 
 /// `skin predict`: predict the jaw in every frame, write the poses and report their error.
@@ -282,6 +337,7 @@ fn fill(
         r.retarget.cost_before,
         r.retarget.cost_after
     );
+    print_choice(&r.retarget);
     if !r.left_out.is_empty() {
         println!(
             "left out of the calibration, their teeth pose far from what the skin says: frames {:?}",
@@ -293,7 +349,13 @@ fn fill(
 }
 
 /// `skin eval`: leave-one-subject-out evaluation of the subjects in `dir`, as JSON or a table.
-fn eval(dir: &Path, json: bool, plot: Option<&Path>, settings: &SettingsArg) -> anyhow::Result<()> {
+fn eval(
+    dir: &Path,
+    json: bool,
+    plot: Option<&Path>,
+    curve: bool,
+    settings: &SettingsArg,
+) -> anyhow::Result<()> {
     let settings = settings.read()?;
     if let Some(p) = plot {
         jawtrack::io::check_replaceable(p)?;
@@ -303,7 +365,7 @@ fn eval(dir: &Path, json: bool, plot: Option<&Path>, settings: &SettingsArg) -> 
         .iter()
         .map(|(_, d)| load(d))
         .collect::<anyhow::Result<Vec<_>>>()?;
-    let e = evaluate(dir, &subjects, &settings, &|m| eprintln!("{m}"))?;
+    let e = evaluate(dir, &subjects, &settings, curve, &|m| eprintln!("{m}"))?;
     if let Some(p) = plot {
         jawtrack::skin::plot::error_over_frames(p, &e)?;
     }
@@ -331,28 +393,54 @@ fn summary(e: &Evaluation) -> serde_json::Value {
 fn print_table(e: &Evaluation) {
     println!("mean error over the mandible's vertices (mm); bone points in brackets");
     println!(
-        "{:<10} {:>16} {:>18} {:>18} {:>16} {:>14}",
-        "subject", "single (own)", "retargeted", "multi-subject", "baseline", "uncalibrated"
+        "{:<8} {:>16} {:>26} {:>18} {:>13} {:>16}  won",
+        "subject", "single", "best source, retargeted", "multi-subject", "uncalibrated", "baseline"
     );
     for s in &e.subjects {
         println!(
-            "{:<10} {:>7.3} ({:>6.3}) {:>9.3} ({:>6.3}) {:>9.3} ({:>6.3}) {:>7.3} ({:>6.3}) {:>14.3}",
+            "{:<8} {:>7.3} ({:>6.3}) {:>8.3} ({:>6.3}) {:<9} {:>8.3} ({:>6.3}) {:>13.3} {:>7.3} ({:>6.3})  {}",
             s.name,
             s.single_mm,
             s.single_bone_mm,
             s.retargeted_mm,
             s.retargeted_bone_mm,
+            s.retargeted_from,
             s.multi_subject_mm,
             s.multi_subject_bone_mm,
+            s.uncalibrated_mm,
             s.baseline_mm,
             s.baseline_bone_mm,
-            s.uncalibrated_mm
+            s.won
         );
     }
     println!(
         "single: learned on the first {:.0}% of each subject's frames, tested on the rest; the others: leave-one-subject-out, every frame",
         jawtrack::skin::eval::SINGLE_TRAIN_SHARE * 100.0
     );
+    println!(
+        "best source: the other subject whose retargeted mapping errs least on this one's frames (known only with its truth); won: the lowest of the four that see only the five calibration poses"
+    );
+    for s in &e.subjects {
+        let weights: Vec<String> = s
+            .multi_subject_weights
+            .iter()
+            .map(|(n, w)| format!("{n} {w:.2}"))
+            .collect();
+        let curve: Vec<String> = s
+            .calibration_curve
+            .iter()
+            .map(|(n, mm)| format!("{n}: {mm:.3}"))
+            .collect();
+        println!(
+            "{}: best source carried {}; pooled mapping {:.3} mm, carried {}; multi-subject weights {}; with more calibration poses {}",
+            s.name,
+            s.retargeted_carried,
+            s.pooled_mm,
+            s.pooled_carried,
+            weights.join(", "),
+            curve.join(", ")
+        );
+    }
     println!(
         "learning {:.1} s a subject ({} frames); prediction {:.3} ms a frame; {:.0} s in all",
         e.learn_s, e.learn_frames, e.predict_ms, e.seconds

@@ -9,7 +9,10 @@ use serde::Serialize;
 
 use super::baseline::baseline_jaw;
 use super::features::SkinPoint;
-use super::model::{SkinModel, SkinSettings, learn_multi, learn_single, retarget_to, skin_points};
+use super::model::{
+    SkinModel, SkinSettings, learn_multi, learn_single, retarget_on, skin_points, spaced,
+};
+use super::retarget::{CandidateScore, RetargetSettings};
 use super::subject::{Subject, bone_point_error};
 use crate::error::{Error, Result};
 use crate::geometry::Pose;
@@ -44,12 +47,30 @@ pub struct SubjectScore {
     pub retargeted_mm: f64,
     pub retargeted_bone_mm: f64,
     pub retargeted_from: String,
+    /// How far that source was carried (a rung of the retargeting's ladder), and every
+    /// rung's score on the calibration poses left out.
+    pub retargeted_carried: String,
+    pub retargeted_candidates: Vec<CandidateScore>,
     pub retargeted_each_mm: Vec<(String, f64)>,
     /// The best single other subject's mapping without retargeting.
     pub uncalibrated_mm: f64,
-    /// The multi-subject mapping of all the others, retargeted; every frame.
+    /// The multi-subject mapping: the paper's pooled mapping of all the others and each
+    /// other's own, every one retargeted, weighted by how well each predicts the subject's
+    /// calibration poses when they are left out; every frame.
     pub multi_subject_mm: f64,
     pub multi_subject_bone_mm: f64,
+    /// The weight of each member ("pooled" and the sources' names).
+    pub multi_subject_weights: Vec<(String, f64)>,
+    /// The paper's pooled mapping alone, retargeted, and how far it was carried.
+    pub pooled_mm: f64,
+    pub pooled_carried: String,
+    /// The multi-subject mapping's error with more calibration poses than the five: the
+    /// five, then others spread over the sequence (as the teeth tracker's frames give them);
+    /// (poses, mm) on every frame.
+    pub calibration_curve: Vec<(usize, f64)>,
+    /// The method with the lowest error of those that see only the calibration poses of this
+    /// subject: "retargeted", "multi-subject", "uncalibrated" or "baseline".
+    pub won: String,
     pub baseline_mm: f64,
     pub baseline_bone_mm: f64,
     /// Per frame (every frame), for the plot: multi-subject, baseline; and the single-subject
@@ -90,10 +111,14 @@ fn mean(v: &[f64]) -> f64 {
 
 /// Evaluate a set (at least two subjects, all with jaw poses and calibration frames), read from
 /// the folder `set` (which errors name).
+///
+/// With `curve`, the multi-subject mapping is also carried with each of
+/// [`CALIBRATION_COUNTS`] calibration poses (several times the work).
 pub fn evaluate(
     set: &std::path::Path,
     subjects: &[Subject],
     settings: &SkinSettings,
+    curve: bool,
     progress: &dyn Fn(&str),
 ) -> Result<Evaluation> {
     let started = Instant::now();
@@ -133,6 +158,7 @@ pub fn evaluate(
             target,
             points: &point_sets[ps],
             settings,
+            curve,
         };
         scores.push(score_subject(&fold, &mut sources[ps], &mut timings)?);
     }
@@ -153,6 +179,8 @@ struct Fold<'a> {
     target: &'a Subject,
     points: &'a [SkinPoint],
     settings: &'a SkinSettings,
+    /// Measure the calibration curve.
+    curve: bool,
 }
 
 /// Timings summed over every subject, for the evaluation's averages.
@@ -173,6 +201,8 @@ struct SourceScores {
     mm: f64,
     bone_mm: f64,
     from: String,
+    carried: String,
+    candidates: Vec<CandidateScore>,
     /// The best source's error without retargeting.
     uncalibrated: f64,
 }
@@ -202,8 +232,18 @@ fn score_subject(
         )
     };
     let single_base = score(target, &all[cut..], &base);
-    let retargeted = score_sources(fold, sources, &all, &features)?;
-    let multi_sc = score_multi(fold, sources, &all, &features)?;
+    let members = retarget_sources(fold, sources, &target.calibration_indices()?)?;
+    let retargeted = score_sources(target, &members, &all, &features);
+    let pooled = pooled_member(fold, sources, &target.calibration_indices()?)?;
+    let pooled_sc = score(target, &all, &|i| pooled.model.predict(&features[i]));
+    let mut multi = members.clone();
+    multi.push(pooled.clone());
+    let weights = member_weights(&multi);
+    let multi_sc = score(target, &all, &|i| combined(&multi, &weights, &features[i]));
+    let mut curve = vec![(5, mean(&multi_sc.mm))];
+    if fold.curve {
+        curve.extend(calibration_curve(fold, sources, &all, &features)?);
+    }
     let base_sc = score(target, &all, &base);
     let mut series = Series {
         frames: target.frames.clone(),
@@ -212,6 +252,17 @@ fn score_subject(
         baseline: base_sc.mm.clone(),
     };
     series.single.extend(single.mm.iter().copied());
+    let across = [
+        ("retargeted", retargeted.mm),
+        ("multi-subject", mean(&multi_sc.mm)),
+        ("uncalibrated", retargeted.uncalibrated),
+        ("baseline", mean(&base_sc.mm)),
+    ];
+    let won = across
+        .iter()
+        .min_by(|a, b| a.1.total_cmp(&b.1))
+        .map(|w| w.0.to_string())
+        .unwrap_or_default();
     Ok(SubjectScore {
         name: target.name.clone(),
         frames: n,
@@ -222,10 +273,21 @@ fn score_subject(
         retargeted_mm: retargeted.mm,
         retargeted_bone_mm: retargeted.bone_mm,
         retargeted_from: retargeted.from,
+        retargeted_carried: retargeted.carried,
+        retargeted_candidates: retargeted.candidates,
         retargeted_each_mm: retargeted.each,
         uncalibrated_mm: retargeted.uncalibrated,
         multi_subject_mm: mean(&multi_sc.mm),
         multi_subject_bone_mm: mean(&multi_sc.bone),
+        multi_subject_weights: multi
+            .iter()
+            .zip(&weights)
+            .map(|(m, w)| (m.name.clone(), *w))
+            .collect(),
+        pooled_mm: mean(&pooled_sc.mm),
+        pooled_carried: pooled.carried,
+        calibration_curve: curve,
+        won,
         baseline_mm: mean(&base_sc.mm),
         baseline_bone_mm: mean(&base_sc.bone),
         series,
@@ -258,18 +320,59 @@ fn score_single(
     Ok((single, features))
 }
 
-/// Retarget every other subject's own mapping (learned once into `sources`) to the target,
-/// with and without calibration, and score each on every frame.
-fn score_sources(
+/// A mapping carried to the target: retargeted, uncalibrated, and its score on the
+/// calibration poses left out (mm, of the rung taken).
+#[derive(Clone)]
+struct Member {
+    name: String,
+    model: SkinModel,
+    plain: SkinModel,
+    carried: String,
+    candidates: Vec<CandidateScore>,
+    held_out_mm: f64,
+}
+
+fn member(
+    name: &str,
+    m: &SkinModel,
+    target: &Subject,
+    frames: &[usize],
+    s: &SkinSettings,
+) -> Result<Member> {
+    let (plain, _) = retarget_on(
+        m,
+        target,
+        frames,
+        &RetargetSettings {
+            iterations: 0,
+            ..s.retarget
+        },
+    )?;
+    let (model, report) = retarget_on(m, target, frames, &s.retarget)?;
+    let held_out_mm = report
+        .candidates
+        .iter()
+        .find(|c| c.carry == report.carried)
+        .map_or(f64::NAN, |c| c.mm);
+    Ok(Member {
+        name: name.into(),
+        model,
+        plain,
+        carried: report.carried,
+        candidates: report.candidates,
+        held_out_mm,
+    })
+}
+
+/// Every other subject's own mapping (learned once into `sources`) carried to the target from
+/// the calibration frames `calibration`.
+fn retarget_sources(
     fold: &Fold,
     sources: &mut [Option<SkinModel>],
-    all: &[usize],
-    features: &[Vec<f64>],
-) -> Result<SourceScores> {
-    let (target, settings) = (fold.target, fold.settings);
-    let mut each = Vec::new();
-    let mut best: Option<(f64, f64, String)> = None;
-    let mut uncalibrated = f64::INFINITY;
+    calibration: &[(&str, usize)],
+) -> Result<Vec<Member>> {
+    let frames: Vec<usize> = calibration.iter().map(|c| c.1).collect();
+    let mut out = Vec::new();
     for (k, src) in fold.subjects.iter().enumerate() {
         if k == fold.t {
             continue;
@@ -280,46 +383,55 @@ fn score_sources(
                 src,
                 Some(fold.points.to_vec()),
                 &rows,
-                settings,
+                fold.settings,
             )?);
         }
         let m = sources[k].as_ref().expect("learned above");
-        let (plain, _) = retarget_to(
-            m,
-            target,
-            &super::retarget::RetargetSettings {
-                iterations: 0,
-                ..settings.retarget
-            },
-        )?;
-        let raw = score(target, all, &|i| plain.predict(&features[i]));
+        out.push(member(&src.name, m, fold.target, &frames, fold.settings)?);
+    }
+    Ok(out)
+}
+
+/// The best single source (on the target's every frame: an oracle, as the paper's Table 1
+/// compares), with and without retargeting, and every source's error.
+fn score_sources(
+    target: &Subject,
+    members: &[Member],
+    all: &[usize],
+    features: &[Vec<f64>],
+) -> SourceScores {
+    let mut each = Vec::new();
+    let mut best: Option<(f64, f64, &Member)> = None;
+    let mut uncalibrated = f64::INFINITY;
+    for m in members {
+        let raw = score(target, all, &|i| m.plain.predict(&features[i]));
         uncalibrated = uncalibrated.min(mean(&raw.mm));
-        let (r, _) = retarget_to(m, target, &settings.retarget)?;
-        let sc = score(target, all, &|i| r.predict(&features[i]));
+        let sc = score(target, all, &|i| m.model.predict(&features[i]));
         let e = mean(&sc.mm);
-        each.push((src.name.clone(), e));
+        each.push((m.name.clone(), e));
         if best.as_ref().is_none_or(|b| e < b.0) {
-            best = Some((e, mean(&sc.bone), src.name.clone()));
+            best = Some((e, mean(&sc.bone), m));
         }
     }
-    let (mm, bone_mm, from) = best.expect("two subjects or more");
-    Ok(SourceScores {
+    let (mm, bone_mm, m) = best.expect("two subjects or more");
+    SourceScores {
         each,
         mm,
         bone_mm,
-        from,
+        from: m.name.clone(),
+        carried: m.carried.clone(),
+        candidates: m.candidates.clone(),
         uncalibrated,
-    })
+    }
 }
 
-/// Learn the multi-subject mapping of every subject but the target, retarget it to the target
-/// and score it on every frame.
-fn score_multi(
+/// The paper's multi-subject mapping (Section 6.2) of every subject but the target, carried to
+/// it from the calibration frames `calibration`.
+fn pooled_member(
     fold: &Fold,
     sources: &[Option<SkinModel>],
-    all: &[usize],
-    features: &[Vec<f64>],
-) -> Result<Scored> {
+    calibration: &[(&str, usize)],
+) -> Result<Member> {
     let t = fold.t;
     let others: Vec<&Subject> = fold
         .subjects
@@ -335,6 +447,72 @@ fn score_multi(
         sources[primary].as_ref(),
         fold.settings,
     )?;
-    let (multi, _) = retarget_to(&multi, fold.target, &fold.settings.retarget)?;
-    Ok(score(fold.target, all, &|i| multi.predict(&features[i])))
+    let frames: Vec<usize> = calibration.iter().map(|c| c.1).collect();
+    member("pooled", &multi, fold.target, &frames, fold.settings)
+}
+
+/// Each member's weight: the inverse square of its error on the calibration poses left out,
+/// normalised (a member that cannot be scored gets none).
+fn member_weights(members: &[Member]) -> Vec<f64> {
+    let raw: Vec<f64> = members
+        .iter()
+        .map(|m| {
+            if m.held_out_mm.is_finite() && m.held_out_mm > 0.0 {
+                1.0 / (m.held_out_mm * m.held_out_mm)
+            } else {
+                0.0
+            }
+        })
+        .collect();
+    let sum: f64 = raw.iter().sum();
+    if sum > 0.0 {
+        raw.iter().map(|w| w / sum).collect()
+    } else {
+        vec![1.0 / members.len() as f64; members.len()]
+    }
+}
+
+/// The weighted mean of the members' bone features, as one jaw pose.
+fn combined(members: &[Member], weights: &[f64], features: &[f64]) -> Pose {
+    let mut b = vec![0.0; 15];
+    for (m, w) in members.iter().zip(weights) {
+        for (acc, v) in b.iter_mut().zip(m.model.predict_bone(features)) {
+            *acc += w * v;
+        }
+    }
+    members[0].model.jaw_from_bone(&b)
+}
+
+/// The numbers of calibration poses the curve is measured at, beyond the five.
+pub const CALIBRATION_COUNTS: [usize; 2] = [10, 24];
+
+/// The multi-subject mapping's error with each of [`CALIBRATION_COUNTS`] calibration poses:
+/// the five named ones, then frames spread over the sequence.
+fn calibration_curve(
+    fold: &Fold,
+    sources: &mut [Option<SkinModel>],
+    all: &[usize],
+    features: &[Vec<f64>],
+) -> Result<Vec<(usize, f64)>> {
+    let named = fold.target.calibration_indices()?;
+    let mut out = Vec::new();
+    for &count in &CALIBRATION_COUNTS {
+        let mut frames = named.clone();
+        for i in spaced(all.len(), count.saturating_sub(named.len()) + named.len()) {
+            if frames.len() >= count {
+                break;
+            }
+            if fold.target.jaw[i].is_some() && frames.iter().all(|f| f.1 != i) {
+                frames.push(("spread", i));
+            }
+        }
+        let mut members = retarget_sources(fold, sources, &frames)?;
+        members.push(pooled_member(fold, sources, &frames)?);
+        let weights = member_weights(&members);
+        let sc = score(fold.target, all, &|i| {
+            combined(&members, &weights, &features[i])
+        });
+        out.push((frames.len(), mean(&sc.mm)));
+    }
+    Ok(out)
 }

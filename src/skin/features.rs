@@ -18,7 +18,8 @@ pub struct FeatureSettings {
     /// How many skin points (the paper: 242).
     pub count: usize,
     /// Mandible vertices this far or more below the lower incisal edge are candidates: the
-    /// chin and the jaw line, not the lips over the teeth.
+    /// chin and the jaw line, not the lips over the teeth (at most half the mandible's height
+    /// at the front, for a mandible shorter than the setting assumes).
     pub below_incisal_mm: f64,
     /// A candidate's ray must reach the skin within this depth of soft tissue.
     pub max_depth_mm: f64,
@@ -123,12 +124,13 @@ fn candidates(
 ) -> Vec<(SkinPoint, Vector3<f64>)> {
     let centre = bone.iter().sum::<Vector3<f64>>() / bone.len().max(1) as f64;
     let (_, hi) = bounds(bone);
-    let front = bone
-        .iter()
-        .filter(|p| p.z > hi.z - 15.0)
-        .map(|p| p.y)
-        .fold(f64::NEG_INFINITY, f64::max);
-    let top = front - s.below_incisal_mm;
+    let front_y = || bone.iter().filter(|p| p.z > hi.z - 15.0).map(|p| p.y);
+    let front = front_y().fold(f64::NEG_INFINITY, f64::max);
+    let chin = front_y().fold(f64::INFINITY, f64::min);
+    // A mandible with teeth is 30-40 mm tall at the front, so the setting leaves the chin; one
+    // without (a bone model, another program's stand-in) may be shorter than the setting:
+    // its lower half stays a candidate.
+    let top = front - s.below_incisal_mm.min((front - chin) / 2.0);
     bone.par_iter()
         .zip(normals.par_iter())
         .filter_map(|(p, n)| {

@@ -45,6 +45,33 @@ pub fn fill(
     tracks_path: &Path,
     settings: &RetargetSettings,
 ) -> Result<(TracksJson, FillReport)> {
+    let (m, subject, mut report) = carried(model, face, tracks, tracks_path, settings)?;
+    let (out, skin) = fill_from_skin(&m, &subject, tracks, tracks_path)?;
+    report.skin_frames = skin;
+    Ok((out, report))
+}
+
+/// The model carried to `face` from the confident frames of `tracks` (`skin retarget
+/// --tracks`): up to [`MAX_CALIBRATION`] of them, spread over the motion, outliers left out.
+/// The report's `skin_frames` is 0: nothing is filled.
+pub fn retarget_from_tracks(
+    model: &SkinModel,
+    face: &Subject,
+    tracks: &TracksJson,
+    tracks_path: &Path,
+    settings: &RetargetSettings,
+) -> Result<(SkinModel, FillReport)> {
+    let (m, _, report) = carried(model, face, tracks, tracks_path, settings)?;
+    Ok((m, report))
+}
+
+fn carried(
+    model: &SkinModel,
+    face: &Subject,
+    tracks: &TracksJson,
+    tracks_path: &Path,
+    settings: &RetargetSettings,
+) -> Result<(SkinModel, Subject, FillReport)> {
     let (subject, teeth) = teeth_subject(face, tracks, tracks_path)?;
     let chosen = spread_calibration(&subject)?;
     let Calibration {
@@ -53,17 +80,14 @@ pub fn fill(
         chosen,
         left_out,
     } = calibrate(model, &subject, chosen, settings)?;
-    let (out, skin) = fill_from_skin(&m, &subject, tracks, tracks_path)?;
-    Ok((
-        out,
-        FillReport {
-            teeth_frames: teeth,
-            skin_frames: skin,
-            calibration_frames: chosen.iter().map(|&i| subject.frames[i]).collect(),
-            left_out,
-            retarget: report,
-        },
-    ))
+    let report = FillReport {
+        teeth_frames: teeth,
+        skin_frames: 0,
+        calibration_frames: chosen.iter().map(|&i| subject.frames[i]).collect(),
+        left_out,
+        retarget: report,
+    };
+    Ok((m, subject, report))
 }
 
 /// The mapping retargeted on the calibration frames it could explain.

@@ -80,9 +80,19 @@ impl SubjectFit {
 impl SkinModel {
     /// The jaw pose for a frame's skin features (the model's own skin points).
     pub fn predict(&self, features: &[f64]) -> Pose {
-        let f = apply(&self.subject.transforms, features);
-        let b = self.regressor.predict(&f);
-        jaw_from_bone(&self.subject.bone(), &self.subject.rest_pose(), &b)
+        self.jaw_from_bone(&self.predict_bone(features))
+    }
+
+    /// The bone features (the five bone points' displacements from rest, mm) for a frame's
+    /// skin features.
+    pub fn predict_bone(&self, features: &[f64]) -> Vec<f64> {
+        self.regressor
+            .predict(&apply(&self.subject.transforms, features))
+    }
+
+    /// The jaw pose of the model's subject whose bone points moved by `b`.
+    pub fn jaw_from_bone(&self, b: &[f64]) -> Pose {
+        jaw_from_bone(&self.subject.bone(), &self.subject.rest_pose(), b)
     }
 
     /// The jaw in every frame of `s`, in its frames' order.

@@ -10,10 +10,11 @@
 //! vector ω_v: the problem's only nonlinearity is then Φ's.
 
 use nalgebra::{DMatrix, DVector, Matrix3, Vector3};
+use rayon::prelude::*;
 use serde::{Deserialize, Serialize};
 
 use super::regress::Regressor;
-use crate::geometry::{hat, so3_exp};
+use crate::geometry::{hat, so3_exp, so3_log};
 
 #[derive(Debug, Clone, Copy, PartialEq, Serialize, Deserialize)]
 #[serde(default, deny_unknown_fields)]
@@ -23,15 +24,15 @@ pub struct RetargetSettings {
     pub lambda_translation: f64,
     /// Levenberg-Marquardt iterations at most.
     pub iterations: usize,
-    /// Beyond the paper, off by default: choose the regularisers' strength (λ1 and λ2 times
-    /// each of [`LAMBDA_SCALES`], or no retargeting at all) by leaving each calibration pose
-    /// out in turn. Five poses make a poor estimate (a pose left out is an extreme the others
-    /// do not cover); docs/skin.md has what it does on two sets.
-    pub cross_validate: bool,
+    /// Choose how far to carry the mapping from the calibration poses themselves (on by
+    /// default), where there are at least [`MIN_CHOOSING_POSES`] of them (`skin fill`, or
+    /// `skin retarget --tracks`): each rung of [`LADDER`] is fitted with some poses left out
+    /// and scored on them, and the best taken. Fewer poses, or off: the paper's per-feature
+    /// transforms with its λ (five poses are each an extreme the others do not cover, and
+    /// leaving one out chose worse than the paper on both sets docs/skin.md measures).
+    #[serde(alias = "cross_validate")]
+    pub choose: bool,
 }
-
-/// The multiples of λ1 and λ2 that cross-validation tries, before no retargeting at all.
-pub const LAMBDA_SCALES: [f64; 3] = [1.0, 1e2, 1e4];
 
 impl Default for RetargetSettings {
     fn default() -> Self {
@@ -39,7 +40,47 @@ impl Default for RetargetSettings {
             lambda_rotation: 1e-5,
             lambda_translation: 2.5e-5,
             iterations: 50,
-            cross_validate: false,
+            choose: true,
+        }
+    }
+}
+
+/// How far a mapping is carried to a new subject.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub enum Carry {
+    /// The source's mapping as it is (the uncalibrated mapping).
+    None,
+    /// One rigid transform of every skin feature's displacement (6 numbers).
+    Global,
+    /// The global transform, then one per feature, regularised by Eq. 3's λ times this
+    /// multiple.
+    PerFeature(f64),
+    /// The paper's: one transform per feature from the identity, with Eq. 3's λ.
+    Paper,
+}
+
+/// The fewest calibration poses (besides the rest) from which the rung is chosen.
+pub const MIN_CHOOSING_POSES: usize = 10;
+
+/// Calibration poses are left out in at most this many groups when the choice scores a rung.
+pub const MAX_FOLDS: usize = 5;
+
+/// The candidates the choice tries, simplest first.
+pub const LADDER: [Carry; 5] = [
+    Carry::None,
+    Carry::Global,
+    Carry::PerFeature(1e4),
+    Carry::PerFeature(1e2),
+    Carry::Paper,
+];
+
+impl std::fmt::Display for Carry {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        match self {
+            Carry::None => write!(f, "none"),
+            Carry::Global => write!(f, "global"),
+            Carry::PerFeature(k) => write!(f, "global, then per-feature λ×{k}"),
+            Carry::Paper => write!(f, "per-feature"),
         }
     }
 }
@@ -54,6 +95,16 @@ pub struct FeatureTransform {
 impl FeatureTransform {
     fn matrix(&self) -> Matrix3<f64> {
         *so3_exp(&Vector3::from(self.rotation)).matrix()
+    }
+
+    /// This transform applied after `first`: d ↦ R (R₁ d + t₁) + t.
+    fn after(&self, first: &FeatureTransform) -> FeatureTransform {
+        let r = so3_exp(&Vector3::from(self.rotation)) * so3_exp(&Vector3::from(first.rotation));
+        let t = self.matrix() * Vector3::from(first.translation) + Vector3::from(self.translation);
+        FeatureTransform {
+            rotation: so3_log(&r).into(),
+            translation: t.into(),
+        }
     }
 }
 
@@ -74,64 +125,36 @@ pub fn apply(transforms: &[FeatureTransform], f: &[f64]) -> Vec<f64> {
     out
 }
 
-/// What the solve reached: the data term Σ|Φ − B|² before and after (mm²), and the steps;
-/// with cross-validation, the multiple of λ1 and λ2 chosen (none: no retargeting) and each
-/// candidate's mean bone point error (mm) on the poses left out.
+/// What the solve reached: the data term Σ|Φ − B|² before and after (mm²), the steps, the
+/// rung taken and, when chosen, every rung's score on the poses left out.
 #[derive(Debug, Clone, Default, Serialize)]
 pub struct RetargetReport {
     pub cost_before: f64,
     pub cost_after: f64,
     pub iterations: usize,
-    pub lambda_scale: Option<f64>,
-    pub cross_validated_mm: Vec<f64>,
+    /// The rung of [`LADDER`] taken ("none", "global", "per-feature λ×100", …).
+    pub carried: String,
+    pub candidates: Vec<CandidateScore>,
 }
 
-/// Retarget with the regularisers' strength chosen by leave-one-out over the calibration
-/// pairs (all but the last, the rest pose, which always stays in), when the settings ask.
-pub fn retarget_chosen(
+/// One rung's mean bone point error (mm) on the calibration poses left out, and its standard
+/// error over those poses.
+#[derive(Debug, Clone, Serialize)]
+pub struct CandidateScore {
+    pub carry: String,
+    pub mm: f64,
+    pub standard_error_mm: f64,
+}
+
+/// Fit one rung of the ladder on `pairs`.
+fn fit(
     phi: &Regressor,
     pairs: &[(Vec<f64>, Vec<f64>)],
     s: &RetargetSettings,
+    carry: Carry,
 ) -> (Vec<FeatureTransform>, RetargetReport) {
-    if !s.cross_validate || pairs.len() < 3 || s.iterations == 0 {
-        return retarget(phi, pairs, s);
-    }
-    let scaled = |k: f64| RetargetSettings {
-        lambda_rotation: s.lambda_rotation * k,
-        lambda_translation: s.lambda_translation * k,
-        ..*s
-    };
-    let held = pairs.len() - 1;
-    let error = |t: &[FeatureTransform], (f, b): &(Vec<f64>, Vec<f64>)| {
-        super::regress::point_errors(&phi.predict(&apply(t, f)), b)
-    };
-    let mut scores = Vec::new();
-    for k in LAMBDA_SCALES {
-        let mut e = 0.0;
-        for out in 0..held {
-            let rest: Vec<(Vec<f64>, Vec<f64>)> = pairs
-                .iter()
-                .enumerate()
-                .filter(|(i, _)| *i != out)
-                .map(|(_, p)| p.clone())
-                .collect();
-            let (t, _) = retarget(phi, &rest, &scaled(k));
-            e += error(&t, &pairs[out]);
-        }
-        scores.push(e / held as f64);
-    }
-    let none = (0..held).map(|i| error(&[], &pairs[i])).sum::<f64>() / held as f64;
-    scores.push(none);
-    let best = (0..scores.len())
-        .min_by(|&a, &b| scores[a].total_cmp(&scores[b]))
-        .expect("candidates");
-    let (t, mut report) = match LAMBDA_SCALES.get(best) {
-        Some(&k) => {
-            let (t, mut r) = retarget(phi, pairs, &scaled(k));
-            r.lambda_scale = Some(k);
-            (t, r)
-        }
-        None => {
+    let mut out = match carry {
+        Carry::None => {
             let c = data_cost(phi, pairs, &[]);
             (
                 Vec::new(),
@@ -142,8 +165,93 @@ pub fn retarget_chosen(
                 },
             )
         }
+        Carry::Global => {
+            let (t, r) = align_globally(phi, pairs, s);
+            (vec![t], r)
+        }
+        Carry::Paper => retarget(phi, pairs, s),
+        Carry::PerFeature(k) => {
+            let scaled = RetargetSettings {
+                lambda_rotation: s.lambda_rotation * k,
+                lambda_translation: s.lambda_translation * k,
+                ..*s
+            };
+            // Per-feature transforms on top of the global one: the regulariser then shrinks
+            // each toward the subject's overall change, which five poses determine well.
+            let (g, first) = align_globally(phi, pairs, s);
+            let moved: Vec<(Vec<f64>, Vec<f64>)> = pairs
+                .iter()
+                .map(|(f, b)| (apply(&[g], f), b.clone()))
+                .collect();
+            let (each, mut r) = retarget(phi, &moved, &scaled);
+            r.cost_before = first.cost_before;
+            r.iterations += first.iterations;
+            (each.iter().map(|t| t.after(&g)).collect(), r)
+        }
     };
-    report.cross_validated_mm = scores;
+    out.1.carried = carry.to_string();
+    out
+}
+
+/// Retarget from calibration pairs (the last one the rest pose, which always stays in): the
+/// paper's per-feature transforms, or, with [`RetargetSettings::choose`] and at least
+/// [`MIN_CHOOSING_POSES`] poses, the rung of [`LADDER`] that predicts the poses left out best.
+/// The rungs taken are scored on the poses left out either way (a mapping's weight among
+/// several).
+pub fn retarget_chosen(
+    phi: &Regressor,
+    pairs: &[(Vec<f64>, Vec<f64>)],
+    s: &RetargetSettings,
+) -> (Vec<FeatureTransform>, RetargetReport) {
+    if s.iterations == 0 {
+        return fit(phi, pairs, s, Carry::None);
+    }
+    let held = pairs.len().saturating_sub(1);
+    if held < 3 {
+        return fit(phi, pairs, s, Carry::Paper);
+    }
+    let ladder: &[Carry] = if s.choose && held >= MIN_CHOOSING_POSES {
+        &LADDER
+    } else {
+        &[Carry::Paper]
+    };
+    let error = |t: &[FeatureTransform], (f, b): &(Vec<f64>, Vec<f64>)| {
+        super::regress::point_errors(&phi.predict(&apply(t, f)), b)
+    };
+    // Each pose is left out once; beyond MAX_FOLDS poses, in MAX_FOLDS interleaved groups.
+    let folds = held.min(MAX_FOLDS);
+    let scores: Vec<CandidateScore> = ladder
+        .iter()
+        .map(|&carry| {
+            let fitted: Vec<Vec<FeatureTransform>> = (0..folds)
+                .into_par_iter()
+                .map(|k| {
+                    let rest: Vec<(Vec<f64>, Vec<f64>)> = pairs
+                        .iter()
+                        .enumerate()
+                        .filter(|(i, _)| *i >= held || i % folds != k)
+                        .map(|(_, p)| p.clone())
+                        .collect();
+                    fit(phi, &rest, s, carry).0
+                })
+                .collect();
+            let e: Vec<f64> = (0..held)
+                .map(|i| error(&fitted[i % folds], &pairs[i]))
+                .collect();
+            let mm = e.iter().sum::<f64>() / held as f64;
+            let var = e.iter().map(|v| (v - mm).powi(2)).sum::<f64>() / (held - 1) as f64;
+            CandidateScore {
+                carry: carry.to_string(),
+                mm,
+                standard_error_mm: (var / held as f64).sqrt(),
+            }
+        })
+        .collect();
+    let best = (0..scores.len())
+        .min_by(|&a, &b| scores[a].mm.total_cmp(&scores[b].mm))
+        .expect("candidates");
+    let (t, mut report) = fit(phi, pairs, s, ladder[best]);
+    report.candidates = scores;
     (t, report)
 }
 
@@ -274,8 +382,7 @@ fn solve(
             cost_before: before,
             cost_after: after,
             iterations: done,
-            lambda_scale: Some(1.0),
-            cross_validated_mm: Vec::new(),
+            ..Default::default()
         },
     )
 }
@@ -409,6 +516,24 @@ mod tests {
     }
 
     #[test]
+    fn a_transform_after_another_is_the_two_applied_in_turn() {
+        let first = FeatureTransform {
+            rotation: [0.1, -0.3, 0.2],
+            translation: [1.0, -2.0, 0.5],
+        };
+        let then = FeatureTransform {
+            rotation: [-0.2, 0.05, 0.4],
+            translation: [0.3, 0.1, -1.0],
+        };
+        let f = [1.0, 2.0, 3.0, -0.5, 0.25, 4.0];
+        let both = apply(&[then.after(&first)], &f);
+        let in_turn = apply(&[then], &apply(&[first], &f));
+        for (a, b) in both.iter().zip(&in_turn) {
+            assert!((a - b).abs() < 1e-12, "{both:?} vs {in_turn:?}");
+        }
+    }
+
+    #[test]
     fn a_subject_whose_skin_moves_turned_is_brought_back() {
         let (phi, x, y) = mapping();
         // The target's displacements are the source's turned by 20° about y and shifted.
@@ -416,36 +541,37 @@ mod tests {
             rotation: [0.0, 0.35, 0.0],
             translation: [0.3, 0.0, 0.0],
         };
-        let pairs: Vec<(Vec<f64>, Vec<f64>)> = (0..6)
-            .map(|i| {
-                let inv = turn.matrix().transpose();
-                let f: Vec<f64> = (0..4)
-                    .flat_map(|v| {
-                        let d = Vector3::new(x[i][3 * v], x[i][3 * v + 1], x[i][3 * v + 2]);
-                        (inv * (d - Vector3::from(turn.translation)))
-                            .iter()
-                            .copied()
-                            .collect::<Vec<_>>()
-                    })
-                    .collect();
-                (f, y[i].clone())
-            })
-            .collect();
+        let turned = |i: usize| {
+            let inv = turn.matrix().transpose();
+            let f: Vec<f64> = (0..4)
+                .flat_map(|v| {
+                    let d = Vector3::new(x[i][3 * v], x[i][3 * v + 1], x[i][3 * v + 2]);
+                    (inv * (d - Vector3::from(turn.translation)))
+                        .iter()
+                        .copied()
+                        .collect::<Vec<_>>()
+                })
+                .collect();
+            (f, y[i].clone())
+        };
+        let pairs: Vec<(Vec<f64>, Vec<f64>)> = (0..6).map(turned).collect();
         let (_, report) = align_globally(&phi, &pairs, &RetargetSettings::default());
         assert!(report.cost_after < 0.05 * report.cost_before, "{report:?}");
         let (_, report) = retarget(&phi, &pairs, &RetargetSettings::default());
         assert!(report.cost_after < 0.05 * report.cost_before, "{report:?}");
-        // Cross-validation scores every candidate and, the turn being real, retargets.
-        let cv = RetargetSettings {
-            cross_validate: true,
-            ..RetargetSettings::default()
-        };
-        let (t, report) = retarget_chosen(&phi, &pairs, &cv);
-        assert_eq!(report.cross_validated_mm.len(), LAMBDA_SCALES.len() + 1);
-        assert!(report.lambda_scale.is_some() && !t.is_empty(), "{report:?}");
-        let none = report.cross_validated_mm[LAMBDA_SCALES.len()];
+        // Five poses: the paper's transforms, scored on the poses left out.
+        let (_, report) = retarget_chosen(&phi, &pairs, &RetargetSettings::default());
+        assert_eq!(report.carried, "per-feature");
+        assert_eq!(report.candidates.len(), 1);
+        // Twelve: every rung is scored and, the turn being real, one that carries it is taken;
+        // the global rung, which is what the turn is, predicts the poses left out far better
+        // than none.
+        let many: Vec<(Vec<f64>, Vec<f64>)> = (0..12).map(turned).collect();
+        let (t, report) = retarget_chosen(&phi, &many, &RetargetSettings::default());
+        assert_eq!(report.candidates.len(), LADDER.len());
+        assert!(report.carried != "none" && !t.is_empty(), "{report:?}");
         assert!(
-            report.cross_validated_mm.iter().take(3).any(|&e| e < none),
+            report.candidates[1].mm < 0.5 * report.candidates[0].mm,
             "{report:?}"
         );
     }
