@@ -276,14 +276,19 @@ fn print_choice(report: &jawtrack::skin::retarget::RetargetReport) {
         .iter()
         .map(|c| format!("{} {:.3} ± {:.3}", c.carry, c.mm, c.standard_error_mm))
         .collect();
-    if scores.is_empty() {
-        println!("carried: {}", report.carried);
-    } else {
-        println!(
-            "carried: {} (bone points on each calibration pose left out, mm: {}; the simplest within one standard error of the best)",
+    match scores.len() {
+        0 => println!("carried: {}", report.carried),
+        1 => println!(
+            "carried: {} (the paper's; choosing needs {} calibration poses or more); bone points on the poses left out: {} mm",
+            report.carried,
+            jawtrack::skin::retarget::MIN_CHOOSING_POSES,
+            scores[0]
+        ),
+        _ => println!(
+            "carried: {}, the best of (bone points on the calibration poses left out, mm) {}",
             report.carried,
             scores.join(", ")
-        );
+        ),
     }
 }
 
