@@ -498,7 +498,7 @@ fn calibration_curve(
     let mut out = Vec::new();
     for &count in &CALIBRATION_COUNTS {
         let mut frames = named.clone();
-        for i in spaced(all.len(), count.saturating_sub(named.len()) + named.len()) {
+        for i in spaced(all.len(), count.saturating_sub(named.len())) {
             if frames.len() >= count {
                 break;
             }
