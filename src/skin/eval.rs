@@ -234,7 +234,8 @@ fn score_subject(
     let single_base = score(target, &all[cut..], &base);
     let members = retarget_sources(fold, sources, &target.calibration_indices()?)?;
     let retargeted = score_sources(target, &members, &all, &features);
-    let pooled = pooled_member(fold, sources, &target.calibration_indices()?)?;
+    let pooled_mapping = pooled_mapping(fold, sources)?;
+    let pooled = pooled_member(fold, &pooled_mapping, &target.calibration_indices()?)?;
     let pooled_sc = score(target, &all, &|i| pooled.model.predict(&features[i]));
     let mut multi = members.clone();
     multi.push(pooled.clone());
@@ -242,7 +243,13 @@ fn score_subject(
     let multi_sc = score(target, &all, &|i| combined(&multi, &weights, &features[i]));
     let mut curve = vec![(5, mean(&multi_sc.mm))];
     if fold.curve {
-        curve.extend(calibration_curve(fold, sources, &all, &features)?);
+        curve.extend(calibration_curve(
+            fold,
+            sources,
+            &pooled_mapping,
+            &all,
+            &features,
+        )?);
     }
     let base_sc = score(target, &all, &base);
     let mut series = Series {
@@ -425,13 +432,8 @@ fn score_sources(
     }
 }
 
-/// The paper's multi-subject mapping (Section 6.2) of every subject but the target, carried to
-/// it from the calibration frames `calibration`.
-fn pooled_member(
-    fold: &Fold,
-    sources: &[Option<SkinModel>],
-    calibration: &[(&str, usize)],
-) -> Result<Member> {
+/// The paper's multi-subject mapping (Section 6.2) of every subject but the target.
+fn pooled_mapping(fold: &Fold, sources: &[Option<SkinModel>]) -> Result<SkinModel> {
     let t = fold.t;
     let others: Vec<&Subject> = fold
         .subjects
@@ -447,8 +449,13 @@ fn pooled_member(
         sources[primary].as_ref(),
         fold.settings,
     )?;
+    Ok(multi)
+}
+
+/// The pooled mapping carried to the target from the calibration frames `calibration`.
+fn pooled_member(fold: &Fold, pooled: &SkinModel, calibration: &[(&str, usize)]) -> Result<Member> {
     let frames: Vec<usize> = calibration.iter().map(|c| c.1).collect();
-    member("pooled", &multi, fold.target, &frames, fold.settings)
+    member("pooled", pooled, fold.target, &frames, fold.settings)
 }
 
 /// Each member's weight: the inverse square of its error on the calibration poses left out,
@@ -491,6 +498,7 @@ pub const CALIBRATION_COUNTS: [usize; 2] = [10, 24];
 fn calibration_curve(
     fold: &Fold,
     sources: &mut [Option<SkinModel>],
+    pooled: &SkinModel,
     all: &[usize],
     features: &[Vec<f64>],
 ) -> Result<Vec<(usize, f64)>> {
@@ -507,7 +515,7 @@ fn calibration_curve(
             }
         }
         let mut members = retarget_sources(fold, sources, &frames)?;
-        members.push(pooled_member(fold, sources, &frames)?);
+        members.push(pooled_member(fold, pooled, &frames)?);
         let weights = member_weights(&members);
         let sc = score(fold.target, all, &|i| {
             combined(&members, &weights, &features[i])
