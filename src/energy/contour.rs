@@ -103,6 +103,31 @@ impl ContourEdges {
         spacing_px: f64,
         region: Option<&[bool]>,
     ) -> Vec<ContourPoint> {
+        self.sampled(mesh, world_from_model, cam, spacing_px, region, true)
+    }
+
+    /// Only the edges where a face of `region` meets one outside it and neither is turned
+    /// away (no silhouette), normals pointing out of the region.
+    pub fn region_edges(
+        &self,
+        mesh: &Mesh,
+        world_from_model: &Pose,
+        cam: &Camera,
+        spacing_px: f64,
+        region: &[bool],
+    ) -> Vec<ContourPoint> {
+        self.sampled(mesh, world_from_model, cam, spacing_px, Some(region), false)
+    }
+
+    fn sampled(
+        &self,
+        mesh: &Mesh,
+        world_from_model: &Pose,
+        cam: &Camera,
+        spacing_px: f64,
+        region: Option<&[bool]>,
+        silhouettes: bool,
+    ) -> Vec<ContourPoint> {
         let view = View { cam };
         let world: Vec<Vector3<f64>> = mesh
             .points()
@@ -137,6 +162,7 @@ impl ContourEdges {
                 (e.faces == 2 && a != b).then_some(if a { first } else { -first })
             });
             let normal = match (silhouette, inside) {
+                (true, _) if !silhouettes => continue,
                 (true, _) => -first * across,
                 (false, Some(inside)) => -inside * across,
                 (false, None) => continue,

@@ -22,7 +22,7 @@ use crate::mesh::Mesh;
 
 /// How far (mm) in front of a contour sample its own surface may lie and the sample still count
 /// as seen (see [`visible`]).
-const OCCLUSION_MM: f64 = 2.0;
+pub(super) const OCCLUSION_MM: f64 = 2.0;
 
 /// One camera and what its mask says at a pixel position (1 on the mesh's label, 0 off it; a
 /// bilinear read of a binary mask, or a soft mask's probability).
@@ -76,7 +76,11 @@ pub struct Aligned {
 
 /// The offset (pixels, along `c.normal`) to the mask's edge nearest the sample within
 /// `reach`: where the mask falls through one half, from inside (behind the sample) to outside.
-fn edge_offset(c: &ContourPoint, mask: &dyn Fn(Vector2<f64>) -> f64, reach: f64) -> Option<f64> {
+pub(super) fn edge_offset(
+    c: &ContourPoint,
+    mask: &dyn Fn(Vector2<f64>) -> f64,
+    reach: f64,
+) -> Option<f64> {
     let step = 0.5;
     let n = (reach / step).ceil() as i32;
     let at = |d: f64| mask(c.pixel + d * c.normal) - 0.5;
@@ -92,6 +96,70 @@ fn edge_offset(c: &ContourPoint, mask: &dyn Fn(Vector2<f64>) -> f64, reach: f64)
         }
     }
     best
+}
+
+/// The cameras that have a mask in a frame, and what their masks say at a pixel position.
+pub struct FrameReads<'a> {
+    cameras: Vec<(Camera, &'a LabelMask)>,
+}
+
+impl<'a> FrameReads<'a> {
+    pub fn new(capture: &Capture, masks: &'a FrameMasks) -> FrameReads<'a> {
+        let cameras = capture
+            .cameras()
+            .iter()
+            .zip(&masks.masks)
+            .filter_map(|(c, m)| Some((c.mask_camera()?, m.as_ref()?)))
+            .collect();
+        FrameReads { cameras }
+    }
+
+    pub fn len(&self) -> usize {
+        self.cameras.len()
+    }
+
+    pub fn is_empty(&self) -> bool {
+        self.cameras.is_empty()
+    }
+
+    pub fn camera(&self, k: usize) -> &Camera {
+        &self.cameras[k].0
+    }
+
+    /// Camera `k`'s mask of `arch`, read bilinearly (1 on its label, 0 off it).
+    pub fn on(&self, k: usize, arch: Arch) -> impl Fn(Vector2<f64>) -> f64 + '_ {
+        let m = self.cameras[k].1;
+        let (w, h, bit) = (m.width as usize, m.height as usize, arch.mask_bit());
+        move |x: Vector2<f64>| bilinear(&m.data, w, h, |v| v & bit != 0, x)
+    }
+
+    /// What `arch`'s model drawn past its mask's edge costs at a pixel of camera `k`, against
+    /// 1 for a model short of it: the energy's weights for a BOI pixel there (λ, and what
+    /// [`Self::extra`] adds).
+    pub fn beyond(&self, k: usize, arch: Arch, w: &Weights) -> impl Fn(Vector2<f64>) -> f64 + '_ {
+        let (extra, lambda) = (self.extra(k, arch, w), w.lambda);
+        move |x: Vector2<f64>| lambda + extra(x)
+    }
+
+    /// What any pixel of `arch`'s model costs at a pixel of camera `k` besides the paper's
+    /// terms: the cross-label weight over the other arch's label, the over-mouth weight over
+    /// the mouth interior's.
+    pub fn extra(&self, k: usize, arch: Arch, w: &Weights) -> impl Fn(Vector2<f64>) -> f64 + '_ {
+        let m = self.cameras[k].1;
+        let (width, height) = (m.width as i64, m.height as i64);
+        let (own, other) = (arch.mask_bit(), arch.other().mask_bit());
+        let w = *w;
+        move |x: Vector2<f64>| {
+            let (i, j) = (x.x.round() as i64, x.y.round() as i64);
+            if i < 0 || j < 0 || i >= width || j >= height {
+                return 0.0;
+            }
+            let label = m.data[(j * width + i) as usize];
+            let cross = label & other != 0 && label & own == 0;
+            (if cross { w.cross } else { 0.0 })
+                + (if label & MOUTH_BIT != 0 { w.mouth } else { 0.0 })
+        }
+    }
 }
 
 /// Align `mesh` (its `edges`) from `start` to the masks of `views`, the contour that
@@ -196,52 +264,16 @@ pub fn align_arch(engine: &dyn EnergyEngine, q: &ArchAlign) -> Result<Found> {
         Arch::Upper => (capture.upper(), capture.lower()),
         Arch::Lower => (capture.lower(), capture.upper()),
     };
-    let bit = q.arch.mask_bit();
-    let cameras: Vec<(Camera, &LabelMask)> = capture
-        .cameras()
-        .iter()
-        .zip(&q.masks.masks)
-        .filter_map(|(c, m)| Some((c.mask_camera()?, m.as_ref()?)))
+    let reads = FrameReads::new(capture, q.masks);
+    let on: Vec<_> = (0..reads.len()).map(|k| reads.on(k, q.arch)).collect();
+    let beyond: Vec<_> = (0..reads.len())
+        .map(|k| reads.beyond(k, q.arch, &q.weights))
         .collect();
-    let reads: Vec<Box<dyn Fn(Vector2<f64>) -> f64 + '_>> = cameras
-        .iter()
-        .map(|(_, m)| {
-            let (w, h) = (m.width as usize, m.height as usize);
-            Box::new(move |x: Vector2<f64>| bilinear(&m.data, w, h, |v| v & bit != 0, x))
-                as Box<dyn Fn(Vector2<f64>) -> f64>
-        })
-        .collect();
-    // Past the mask's edge a model costs the over-mouth weight where the mask labels the
-    // mouth interior, and the boundary term's λ elsewhere (lips may hide teeth there).
-    let (lambda, mouth) = (q.weights.lambda, q.weights.mouth);
-    let beyond: Vec<Box<dyn Fn(Vector2<f64>) -> f64 + '_>> = cameras
-        .iter()
-        .map(|(_, m)| {
-            let (w, h) = (m.width as i64, m.height as i64);
-            Box::new(move |x: Vector2<f64>| {
-                let (i, j) = (x.x.round() as i64, x.y.round() as i64);
-                let inside = i >= 0 && j >= 0 && i < w && j < h;
-                let label = if inside {
-                    m.data[(j * w + i) as usize]
-                } else {
-                    0
-                };
-                if label & MOUTH_BIT != 0 {
-                    mouth
-                } else {
-                    lambda
-                }
-            }) as Box<dyn Fn(Vector2<f64>) -> f64>
-        })
-        .collect();
-    let views: Vec<MaskView> = cameras
-        .iter()
-        .zip(&reads)
-        .zip(&beyond)
-        .map(|(((camera, _), mask), beyond)| MaskView {
-            camera,
-            mask: mask.as_ref(),
-            beyond: Some(beyond.as_ref()),
+    let views: Vec<MaskView> = (0..reads.len())
+        .map(|k| MaskView {
+            camera: reads.camera(k),
+            mask: &on[k],
+            beyond: Some(&beyond[k]),
         })
         .collect();
     let other_pose = *q.from.get(q.arch.other());
@@ -271,7 +303,7 @@ pub fn align_arch(engine: &dyn EnergyEngine, q: &ArchAlign) -> Result<Found> {
 }
 
 #[cfg(test)]
-mod tests {
+pub(crate) mod tests {
     use nalgebra::{Rotation3, Vector3};
 
     use super::*;
@@ -279,7 +311,7 @@ mod tests {
     use crate::geometry::{Distortion, so3_exp};
 
     /// A camera at `eye` looking at the origin (y down in the image).
-    fn looking_at_origin(eye: Vector3<f64>) -> Camera {
+    pub(crate) fn looking_at_origin(eye: Vector3<f64>) -> Camera {
         let forward = (-eye).normalize();
         let right = Vector3::new(0.0, -1.0, 0.0).cross(&forward).normalize();
         let down = forward.cross(&right);

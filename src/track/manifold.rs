@@ -36,6 +36,10 @@ impl JawManifold {
         (v - self.pca.reconstruct(&v, 3)).norm()
     }
 
+    pub fn tolerance_mm(&self) -> f64 {
+        self.tolerance_mm
+    }
+
     /// The objective's penalty: `weight` per mm beyond the tolerance.
     pub fn penalty(&self, jaw: &Pose) -> f64 {
         self.weight * (self.distance_mm(jaw) - self.tolerance_mm).max(0.0)

@@ -7,6 +7,7 @@
 pub mod align;
 pub mod contact;
 pub mod floor;
+pub mod joint;
 pub mod manifold;
 pub mod output;
 pub mod overlay;

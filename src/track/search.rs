@@ -56,12 +56,76 @@ pub struct SearchSettings {
     /// the region the lips hide for free. 0 gives the paper's E; masks without the label
     /// have no such pixels.
     pub mouth_weight: f64,
-    /// How each arch's pose is found from its starts: `paper`, the derivative-free search of
-    /// the paper's energy (finite differences, golden section, local sampling), or `contour`,
-    /// Gauss-Newton steps that bring the arch's teeth outline onto its masks' edges
-    /// ([`super::align`]), experimental.
+    /// How the arches' poses are found: `paper`, the derivative-free search of the paper's
+    /// energy per arch (finite differences, golden section, local sampling); `gauss-newton`,
+    /// Gauss-Newton steps that bring both arches' teeth outlines onto their masks' edges at
+    /// once, the contact and the jaw's manifold as residuals ([`super::joint`]), falling back
+    /// to `paper` on a frame where it ends lost; or `contour`, the same steps per arch
+    /// ([`super::align`]).
     #[serde(skip_serializing_if = "Solver::is_paper")]
     pub solver: Solver,
+    /// The `gauss-newton` solver's settings.
+    #[serde(skip_serializing_if = "GaussNewtonSettings::is_default")]
+    pub gauss_newton: GaussNewtonSettings,
+}
+
+/// See [`super::joint`].
+#[derive(Debug, Clone, PartialEq, serde::Serialize, serde::Deserialize)]
+#[serde(default, deny_unknown_fields)]
+pub struct GaussNewtonSettings {
+    /// How far (pixels) each silhouette sample looks for its mask's edge, one entry per
+    /// stage, coarse to fine; each stage draws the arches once per camera.
+    pub reaches_px: Vec<f64>,
+    /// Gauss-Newton steps per stage (fewer when a step moves nothing).
+    pub steps: usize,
+    /// Silhouette sample spacing (pixels).
+    pub spacing_px: f64,
+    /// The smoothing width ε (pixels): offsets below it are weighed as squares, above it as
+    /// the pixel counts they stand for.
+    pub smoothing_px: f64,
+    /// What a millimetre² of either arch's displacement from the frame's start costs, in the
+    /// silhouette residuals' unit (pixels of contour times pixels of offset): holds the
+    /// directions the masks barely see (a nod about the incisal edges) where the last frame
+    /// left them.
+    pub motion_prior: f64,
+    /// What a millimetre² of contact depth, and of the jaw's distance from its manifold,
+    /// beyond their tolerances costs (same unit); 0 leaves a term out.
+    pub contact_stiffness: f64,
+    pub manifold_stiffness: f64,
+}
+
+impl Default for GaussNewtonSettings {
+    fn default() -> Self {
+        GaussNewtonSettings {
+            reaches_px: vec![8.0, 4.0, 3.0, 3.0, 3.0],
+            steps: 2,
+            spacing_px: 2.0,
+            smoothing_px: 0.5,
+            motion_prior: 30.0,
+            contact_stiffness: 1000.0,
+            manifold_stiffness: 1000.0,
+        }
+    }
+}
+
+impl GaussNewtonSettings {
+    fn is_default(&self) -> bool {
+        *self == GaussNewtonSettings::default()
+    }
+
+    fn validate(&self, rules: &Rules) -> Result<()> {
+        rules.length("reaches_px", self.reaches_px.len(), 1, 16)?;
+        for (k, &reach) in self.reaches_px.iter().enumerate() {
+            rules.number(&format!("reaches_px[{k}]"), reach, 0.5, 64.0)?;
+        }
+        rules.count("steps", self.steps as u64, 1, 100)?;
+        rules.number("spacing_px", self.spacing_px, 0.25, 64.0)?;
+        rules.above("smoothing_px", self.smoothing_px, 0.0, 64.0)?;
+        rules.number("motion_prior", self.motion_prior, 0.0, 1e9)?;
+        rules.number("contact_stiffness", self.contact_stiffness, 0.0, 1e9)?;
+        rules.number("manifold_stiffness", self.manifold_stiffness, 0.0, 1e9)?;
+        Ok(())
+    }
 }
 
 /// See [`SearchSettings::solver`].
@@ -70,6 +134,7 @@ pub struct SearchSettings {
 pub enum Solver {
     #[default]
     Paper,
+    GaussNewton,
     Contour,
 }
 
@@ -98,6 +163,7 @@ impl Default for SearchSettings {
             cross_weight: 1.0,
             mouth_weight: 1.0,
             solver: Solver::Paper,
+            gauss_newton: GaussNewtonSettings::default(),
         }
     }
 }
@@ -125,6 +191,7 @@ impl SearchSettings {
         rules.number("lambda", self.lambda, 0.0, 1000.0)?;
         rules.number("cross_weight", self.cross_weight, 0.0, 1000.0)?;
         rules.number("mouth_weight", self.mouth_weight, 0.0, 1000.0)?;
+        self.gauss_newton.validate(&rules.within("gauss_newton"))?;
         Ok(())
     }
 

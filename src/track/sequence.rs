@@ -8,8 +8,9 @@ use std::time::Instant;
 
 use nalgebra::Vector3;
 
-use super::align::{ArchAlign, align_arch};
+use super::align::{ArchAlign, FrameReads, align_arch};
 use super::contact::{Contact, ContactSettings};
+use super::joint::{JawHinge, JointView, align_both};
 use super::manifold::JawManifold;
 use super::penalties::Penalties;
 use super::prior::JawPrior;
@@ -299,7 +300,7 @@ pub fn track_frames(
                 settings.jaw_manifold_tolerance_mm,
             )
         });
-    let edges = (settings.search.solver == Solver::Contour).then(|| {
+    let edges = (settings.search.solver != Solver::Paper).then(|| {
         [
             ContourEdges::of(capture.upper()),
             ContourEdges::of(capture.lower()),
@@ -398,8 +399,19 @@ struct Run<'a> {
     centres: [Vector3<f64>; 2],
     prior: JawPrior,
     penalties: Penalties,
-    /// Each arch's contour edges, for the contour solver.
+    /// Each arch's contour edges, for the solvers that align outlines.
     edges: Option<[ContourEdges; 2]>,
+}
+
+/// What [`Run::joint`] found in a frame.
+struct JointFound {
+    poses: ArchPoses,
+    /// Their energies (upper, lower).
+    energies: [Energy; 2],
+    /// An arch's area error is above the bound of a lost frame: the paper's search takes
+    /// the frame over.
+    lost: bool,
+    evaluations: usize,
 }
 
 impl Run<'_> {
@@ -413,19 +425,8 @@ impl Run<'_> {
         seed: u64,
     ) -> Result<Found> {
         let search_settings = &self.settings.search;
-        match &self.edges {
-            None => search(
-                engine,
-                &ArchSearch {
-                    arch,
-                    from,
-                    centre: &self.centres[arch.index()],
-                    penalties: &self.penalties,
-                    settings: search_settings,
-                    seed,
-                },
-            ),
-            Some(edges) => align_arch(
+        match (&self.edges, search_settings.solver) {
+            (Some(edges), Solver::Contour) => align_arch(
                 engine,
                 &ArchAlign {
                     capture: self.capture,
@@ -437,7 +438,128 @@ impl Run<'_> {
                     weights: search_settings.weights(),
                 },
             ),
+            // Gauss-Newton's fallback, and the paper's search itself.
+            _ => search(
+                engine,
+                &ArchSearch {
+                    arch,
+                    from,
+                    centre: &self.centres[arch.index()],
+                    penalties: &self.penalties,
+                    settings: search_settings,
+                    seed,
+                },
+            ),
         }
+    }
+
+    /// Both arches' poses by Gauss-Newton ([`align_both`]) from the best of the frame's
+    /// `starts`.
+    fn joint(
+        &self,
+        engine: &dyn EnergyEngine,
+        masks: &FrameMasks,
+        edges: &[ContourEdges; 2],
+        starts: &[ArchPoses],
+    ) -> Result<JointFound> {
+        let weights = self.settings.search.weights();
+        let gn = &self.settings.search.gauss_newton;
+        let mut evaluations = 0;
+        // Every candidate is scored on both arches: objective of each plus the penalties.
+        let mut score = |candidates: &[ArchPoses]| -> Result<Vec<(f64, [Energy; 2])>> {
+            let upper = engine.evaluate(Arch::Upper, candidates)?;
+            let lower = engine.evaluate(Arch::Lower, candidates)?;
+            evaluations += 2 * candidates.len();
+            Ok(upper
+                .into_iter()
+                .zip(lower)
+                .zip(candidates)
+                .map(|((u, l), c)| {
+                    let total =
+                        u.objective(&weights) + l.objective(&weights) + self.penalties.of(c);
+                    (total, [u, l])
+                })
+                .collect())
+        };
+        let scored = score(starts)?;
+        let (k, _) = scored
+            .iter()
+            .enumerate()
+            .min_by(|a, b| a.1.0.total_cmp(&b.1.0))
+            .expect("a start");
+        let start = starts[k];
+        let reads = FrameReads::new(self.capture, masks);
+        let on: Vec<_> = (0..reads.len())
+            .map(|c| Arch::BOTH.map(|a| reads.on(c, a)))
+            .collect();
+        let extra: Vec<_> = (0..reads.len())
+            .map(|c| Arch::BOTH.map(|a| reads.extra(c, a, &weights)))
+            .collect();
+        let views: Vec<JointView> = (0..reads.len())
+            .map(|c| JointView {
+                camera: reads.camera(c),
+                masks: [&on[c][0], &on[c][1]],
+                extra: [Some(&extra[c][0]), Some(&extra[c][1])],
+            })
+            .collect();
+        let contact = self.penalties.contact.as_ref();
+        let manifold = self.penalties.manifold.as_ref();
+        let depth = |jaw: &Pose| contact.map_or(0.0, |c| c.depth(jaw));
+        let off = |jaw: &Pose| manifold.map_or(0.0, |m| m.distance_mm(jaw));
+        let mut hinges = Vec::new();
+        if let Some(c) = contact.filter(|_| gn.contact_stiffness > 0.0) {
+            hinges.push(JawHinge {
+                distance_mm: &depth,
+                tolerance_mm: c.tolerance_mm(),
+                stiffness: gn.contact_stiffness,
+            });
+        }
+        if let Some(m) = manifold.filter(|_| gn.manifold_stiffness > 0.0) {
+            hinges.push(JawHinge {
+                distance_mm: &off,
+                tolerance_mm: m.tolerance_mm(),
+                stiffness: gn.manifold_stiffness,
+            });
+        }
+        let apart = matches!(self.capture.mask_mode(), MaskMode::PerArch { .. });
+        let found = align_both(
+            [
+                (self.capture.upper(), &edges[0]),
+                (self.capture.lower(), &edges[1]),
+            ],
+            start,
+            &views,
+            apart,
+            &hinges,
+            weights.lambda,
+            gn,
+        );
+        let found = found.poses;
+        // The result, each arch's result with the other's start, and the start: where the
+        // steps made an arch worse (too few samples to hold it, an edge that is another's),
+        // its start stands.
+        let mut candidates = vec![
+            found,
+            start.with(Arch::Upper, found.upper),
+            start.with(Arch::Lower, found.lower),
+        ];
+        let mut scored_new = score(&candidates)?;
+        candidates.push(start);
+        scored_new.push(scored.into_iter().nth(k).expect("the start"));
+        let (best, (_, energies)) = candidates
+            .into_iter()
+            .zip(scored_new)
+            .min_by(|a, b| a.1.0.total_cmp(&b.1.0))
+            .expect("candidates");
+        let lost = energies
+            .iter()
+            .any(|e| e.area_error() > self.settings.low_confidence_area_error);
+        Ok(JointFound {
+            poses: best,
+            energies,
+            lost,
+            evaluations,
+        })
     }
 }
 
@@ -469,6 +591,14 @@ fn track_frame(
     // Start, per arch, from whichever fits this frame best: the last good pose, its
     // constant-velocity extrapolation, or the latest low-confidence estimate since.
     let starts = starts(state);
+    if let (Solver::GaussNewton, Some(edges)) = (settings.search.solver, &run.edges) {
+        let found = run.joint(&*engine, masks, edges, &starts)?;
+        evaluations += found.evaluations;
+        if !found.lost {
+            let (poses, energies) = (found.poses, found.energies);
+            return Ok(finish(settings, state, frame, poses, energies, evaluations));
+        }
+    }
     let mut poses = state.last;
     let passes = match capture.mask_mode() {
         MaskMode::PerArch { .. } => settings.per_arch_passes,
@@ -520,7 +650,27 @@ fn track_frame(
     let upper = engine.evaluate(Arch::Upper, &[poses])?.remove(0);
     let lower = engine.evaluate(Arch::Lower, &[poses])?.remove(0);
     evaluations += 2;
-    let worst_area_error = upper.area_error().max(lower.area_error());
+    Ok(finish(
+        settings,
+        state,
+        frame,
+        poses,
+        [upper, lower],
+        evaluations,
+    ))
+}
+
+/// The frame's result at `poses` (their energies `[upper, lower]`), its confidence, and the
+/// state moved on.
+fn finish(
+    settings: &TrackSettings,
+    state: &mut TrackState,
+    frame: u32,
+    poses: ArchPoses,
+    energies: [Energy; 2],
+    evaluations: usize,
+) -> FrameResult {
+    let worst_area_error = energies[0].area_error().max(energies[1].area_error());
     let status = confidence(settings, state, worst_area_error);
     state.advance(
         status,
@@ -528,14 +678,14 @@ fn track_frame(
         worst_area_error,
         settings.confidence_window,
     );
-    Ok(FrameResult {
+    FrameResult {
         frame,
         poses,
-        energies: Some([upper, lower]),
+        energies: Some(energies),
         status,
         evaluations,
         seconds: 0.0,
-    })
+    }
 }
 
 /// The best `k` options for `arch` by objective that lie apart from each other (more than
