@@ -71,6 +71,17 @@ choice!(JointArg => jawtrack::synth::Joint {
     Variant,
 });
 
+choice!(SearchArg => jawtrack::track::Solver {
+    /// The paper's derivative-free search of its energy, per arch (finite differences, golden
+    /// section, local sampling)
+    Paper,
+    /// Gauss-Newton over both arches at once on the energy's terms along the silhouettes,
+    /// falling back to the paper's search on a lost frame
+    GaussNewton,
+    /// Gauss-Newton per arch on its teeth outline (experimental)
+    Contour,
+});
+
 choice!(MaskKindArg => jawtrack::synth::MaskKind {
     /// One label per arch.
     PerArch,
@@ -229,6 +240,7 @@ pub fn read_settings<'a, T: serde::de::DeserializeOwned>(
 pub fn track_settings(
     arg: Option<&Path>,
     energy: EnergyArg,
+    search: Option<SearchArg>,
 ) -> anyhow::Result<jawtrack::track::TrackSettings> {
     let mut settings = match arg {
         None => jawtrack::track::TrackSettings::default(),
@@ -242,6 +254,9 @@ pub fn track_settings(
     if energy == EnergyArg::Paper {
         settings.search.cross_weight = 0.0;
         settings.search.mouth_weight = 0.0;
+    }
+    if let Some(search) = search {
+        settings.search.solver = search.into();
     }
     Ok(settings)
 }

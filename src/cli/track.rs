@@ -42,6 +42,9 @@ pub struct RunArgs {
     /// The objective: the paper's E with the terms of our own, or the paper's E alone.
     #[arg(long, value_enum, default_value_t = EnergyArg::Full)]
     pub energy: EnergyArg,
+    /// How the poses are found (`search.solver` of the settings; this wins).
+    #[arg(long, value_enum)]
+    pub search: Option<crate::cli::args::SearchArg>,
 }
 
 impl RunArgs {
@@ -58,7 +61,7 @@ impl RunArgs {
             overlays: self.overlays.clone(),
             resume: self.resume,
             force: self.force,
-            settings: track_settings(self.settings.as_deref(), self.energy)?,
+            settings: track_settings(self.settings.as_deref(), self.energy, self.search)?,
             ..SessionOptions::new(&self.output)
         })
     }

@@ -133,10 +133,13 @@ impl ContourEdges {
             .points()
             .map(|p| world_from_model.transform_point(&p))
             .collect();
+        // Each vertex projected once: an edge's ends and opposite vertices are shared.
+        let pixels: Vec<Option<Vector2<f64>>> = world.iter().map(|p| view.pixel(p)).collect();
         let mut out = Vec::new();
         for e in &self.edges {
             let [a, b] = e.ends.map(|v| world[v as usize]);
-            let (Some(pa), Some(pb)) = (view.pixel(&a), view.pixel(&b)) else {
+            let (Some(pa), Some(pb)) = (pixels[e.ends[0] as usize], pixels[e.ends[1] as usize])
+            else {
                 continue;
             };
             let along = pb - pa;
@@ -145,10 +148,7 @@ impl ContourEdges {
                 continue;
             }
             let across = Vector2::new(-along.y, along.x) / length;
-            let side = |v: u32| {
-                view.pixel(&world[v as usize])
-                    .map_or(0.0, |p| (p - pa).dot(&across).signum())
-            };
+            let side = |v: u32| pixels[v as usize].map_or(0.0, |p| (p - pa).dot(&across).signum());
             let first = side(e.opposite[0]);
             if first == 0.0 {
                 continue;

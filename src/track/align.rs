@@ -82,20 +82,26 @@ pub(super) fn edge_offset(
     reach: f64,
 ) -> Option<f64> {
     let step = 0.5;
-    let n = (reach / step).ceil() as i32;
+    let n = (reach / step).ceil() as usize;
     let at = |d: f64| mask(c.pixel + d * c.normal) - 0.5;
-    let mut best: Option<f64> = None;
-    for k in -n..n {
+    // Outward from the sample, both ways at once: the first crossing found is the nearest.
+    let (mut ahead, mut behind) = (at(0.0), at(0.0));
+    for k in 0..n {
         let (d0, d1) = (k as f64 * step, (k + 1) as f64 * step);
-        let (m0, m1) = (at(d0), at(d1));
-        if m0 >= 0.0 && m1 < 0.0 {
-            let d = d0 + step * m0 / (m0 - m1);
-            if best.is_none_or(|b| d.abs() < b.abs()) {
-                best = Some(d);
-            }
+        let next_ahead = at(d1);
+        let forward =
+            (ahead >= 0.0 && next_ahead < 0.0).then(|| d0 + step * ahead / (ahead - next_ahead));
+        let next_behind = at(-d1);
+        let backward = (next_behind >= 0.0 && behind < 0.0)
+            .then(|| -d1 + step * next_behind / (next_behind - behind));
+        match (forward, backward) {
+            (Some(f), Some(b)) => return Some(if f <= -b { f } else { b }),
+            (Some(d), None) | (None, Some(d)) => return Some(d),
+            (None, None) => {}
         }
+        (ahead, behind) = (next_ahead, next_behind);
     }
-    best
+    None
 }
 
 /// The cameras that have a mask in a frame, and what their masks say at a pixel position.

@@ -25,6 +25,7 @@
 //! few hundred projected points per camera.
 
 use nalgebra::{SMatrix, SVector, Vector2, Vector6};
+use rayon::prelude::*;
 
 use super::align::{OCCLUSION_MM, edge_offset};
 use super::search::GaussNewtonSettings;
@@ -40,7 +41,7 @@ type Matrix12 = SMatrix<f64, 12, 12>;
 type Vector12 = SVector<f64, 12>;
 
 /// A pixel-position read of a mask or of a cost.
-pub type Read<'a> = &'a dyn Fn(Vector2<f64>) -> f64;
+pub type Read<'a> = &'a (dyn Fn(Vector2<f64>) -> f64 + Sync);
 
 /// One camera and what its masks say for each arch (upper, lower).
 pub struct JointView<'a> {
@@ -165,8 +166,9 @@ fn samples(
 ) -> Vec<Sample> {
     let classes = classes(apart);
     let pose = [poses.upper, poses.lower];
-    let mut out = Vec::new();
-    for (v, view) in views.iter().enumerate() {
+    // The cameras draw and sample in parallel.
+    let per_view = views.par_iter().enumerate().map(|(v, view)| {
+        let mut out = Vec::new();
         let items: Vec<_> = (0..2)
             .map(|a| (arches[a].0, &pose[a], classes[a][0], classes[a][1]))
             .collect();
@@ -214,8 +216,9 @@ fn samples(
                 }
             }
         }
-    }
-    out
+        out
+    });
+    per_view.flatten().collect()
 }
 
 /// The jaw pose `U⁻¹·exp(ξ_j)·L`.
@@ -434,7 +437,7 @@ mod tests {
                 .class
             })
             .collect();
-        type MaskRead<'a> = Box<dyn Fn(Vector2<f64>) -> f64 + 'a>;
+        type MaskRead<'a> = Box<dyn Fn(Vector2<f64>) -> f64 + Sync + 'a>;
         let reads: Vec<[MaskRead; 2]> = masks
             .iter()
             .map(|m| {

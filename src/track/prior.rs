@@ -47,6 +47,13 @@ impl JawPrior {
     /// Jaw poses to try, given the jaw poses the frame starts from: the coarse grid, then the
     /// `nearest` poses of the fine one.
     pub fn candidates(&self, starts: &[Pose]) -> Vec<Pose> {
+        let mut out = self.coarse.clone();
+        out.extend(self.nearest_to(starts, self.nearest));
+        out
+    }
+
+    /// The `n` poses of the fine grid nearest to any of `starts` (in no order).
+    pub fn nearest_to(&self, starts: &[Pose], n: usize) -> Vec<Pose> {
         let distance = |j: &Pose| {
             starts
                 .iter()
@@ -58,13 +65,11 @@ impl JawPrior {
                 .fold(f64::INFINITY, f64::min)
         };
         let mut fine: Vec<(f64, &Pose)> = self.fine.iter().map(|j| (distance(j), j)).collect();
-        let n = self.nearest.min(fine.len());
+        let n = n.min(fine.len());
         if n > 0 && n < fine.len() {
             fine.select_nth_unstable_by(n, |a, b| a.0.total_cmp(&b.0));
         }
-        let mut out = self.coarse.clone();
-        out.extend(fine[..n].iter().map(|(_, j)| **j));
-        out
+        fine[..n].iter().map(|(_, j)| **j).collect()
     }
 }
 

@@ -92,18 +92,25 @@ pub struct GaussNewtonSettings {
     /// beyond their tolerances costs (same unit); 0 leaves a term out.
     pub contact_stiffness: f64,
     pub manifold_stiffness: f64,
+    /// The lower arch also starts from the best of this many poses of the jaw prior's fine
+    /// grid nearest to the frame's starts (one evaluation each; see
+    /// `TrackSettings::jaw_prior_fine_grid`): a jaw that went astray by a step or two comes
+    /// back. Farther, the frame is lost and the paper's search, with the whole prior, takes
+    /// it over.
+    pub jaw_prior_nearest: usize,
 }
 
 impl Default for GaussNewtonSettings {
     fn default() -> Self {
         GaussNewtonSettings {
-            reaches_px: vec![8.0, 4.0, 3.0, 3.0, 3.0],
+            reaches_px: vec![8.0, 4.0, 3.0],
             steps: 2,
             spacing_px: 2.0,
             smoothing_px: 0.5,
             motion_prior: 30.0,
             contact_stiffness: 1000.0,
             manifold_stiffness: 1000.0,
+            jaw_prior_nearest: 20,
         }
     }
 }
@@ -124,6 +131,12 @@ impl GaussNewtonSettings {
         rules.number("motion_prior", self.motion_prior, 0.0, 1e9)?;
         rules.number("contact_stiffness", self.contact_stiffness, 0.0, 1e9)?;
         rules.number("manifold_stiffness", self.manifold_stiffness, 0.0, 1e9)?;
+        rules.count(
+            "jaw_prior_nearest",
+            self.jaw_prior_nearest as u64,
+            0,
+            10_000,
+        )?;
         Ok(())
     }
 }

@@ -453,6 +453,27 @@ impl Run<'_> {
         }
     }
 
+    /// Each candidate scored on both arches: the objective of each plus the penalties, and
+    /// the energies (upper, lower).
+    fn score_both(
+        &self,
+        engine: &dyn EnergyEngine,
+        candidates: &[ArchPoses],
+    ) -> Result<Vec<(f64, [Energy; 2])>> {
+        let weights = self.settings.search.weights();
+        let upper = engine.evaluate(Arch::Upper, candidates)?;
+        let lower = engine.evaluate(Arch::Lower, candidates)?;
+        Ok(upper
+            .into_iter()
+            .zip(lower)
+            .zip(candidates)
+            .map(|((u, l), c)| {
+                let total = u.objective(&weights) + l.objective(&weights) + self.penalties.of(c);
+                (total, [u, l])
+            })
+            .collect())
+    }
+
     /// Both arches' poses by Gauss-Newton ([`align_both`]) from the best of the frame's
     /// `starts`.
     fn joint(
@@ -465,29 +486,38 @@ impl Run<'_> {
         let weights = self.settings.search.weights();
         let gn = &self.settings.search.gauss_newton;
         let mut evaluations = 0;
-        // Every candidate is scored on both arches: objective of each plus the penalties.
-        let mut score = |candidates: &[ArchPoses]| -> Result<Vec<(f64, [Energy; 2])>> {
-            let upper = engine.evaluate(Arch::Upper, candidates)?;
-            let lower = engine.evaluate(Arch::Lower, candidates)?;
-            evaluations += 2 * candidates.len();
-            Ok(upper
-                .into_iter()
-                .zip(lower)
-                .zip(candidates)
-                .map(|((u, l), c)| {
-                    let total =
-                        u.objective(&weights) + l.objective(&weights) + self.penalties.of(c);
-                    (total, [u, l])
-                })
-                .collect())
-        };
-        let scored = score(starts)?;
+        let scored = self.score_both(engine, starts)?;
+        evaluations += 2 * starts.len();
         let (k, _) = scored
             .iter()
             .enumerate()
             .min_by(|a, b| a.1.0.total_cmp(&b.1.0))
             .expect("a start");
-        let start = starts[k];
+        let mut start = starts[k];
+        if gn.jaw_prior_nearest > 0 {
+            // The lower arch from the jaw prior's poses near the starts too, placed on the
+            // upper arch just chosen.
+            let jaws: Vec<Pose> = starts.iter().map(ArchPoses::jaw).collect();
+            let mut options: Vec<ArchPoses> = starts
+                .iter()
+                .map(|s| start.with(Arch::Lower, s.lower))
+                .collect();
+            options.extend(
+                self.prior
+                    .nearest_to(&jaws, gn.jaw_prior_nearest)
+                    .iter()
+                    .map(|j| start.with(Arch::Lower, start.upper.compose(j))),
+            );
+            let energies = engine.evaluate(Arch::Lower, &options)?;
+            evaluations += options.len();
+            let (best, _) = options
+                .iter()
+                .zip(energies)
+                .map(|(o, e)| (o, e.objective(&weights) + self.penalties.of(o)))
+                .min_by(|a, b| a.1.total_cmp(&b.1))
+                .expect("options");
+            start = *best;
+        }
         let reads = FrameReads::new(self.capture, masks);
         let on: Vec<_> = (0..reads.len())
             .map(|c| Arch::BOTH.map(|a| reads.on(c, a)))
@@ -538,19 +568,18 @@ impl Run<'_> {
         // The result, each arch's result with the other's start, and the start: where the
         // steps made an arch worse (too few samples to hold it, an edge that is another's),
         // its start stands.
-        let mut candidates = vec![
+        let candidates = [
             found,
             start.with(Arch::Upper, found.upper),
             start.with(Arch::Lower, found.lower),
+            start,
         ];
-        let mut scored_new = score(&candidates)?;
-        candidates.push(start);
-        scored_new.push(scored.into_iter().nth(k).expect("the start"));
         let (best, (_, energies)) = candidates
             .into_iter()
-            .zip(scored_new)
+            .zip(self.score_both(engine, &candidates)?)
             .min_by(|a, b| a.1.0.total_cmp(&b.1.0))
             .expect("candidates");
+        evaluations += 2 * candidates.len();
         let lost = energies
             .iter()
             .any(|e| e.area_error() > self.settings.low_confidence_area_error);

@@ -50,6 +50,9 @@ pub struct TrackArgs {
     /// tracking and the floor alike).
     #[arg(long, value_enum, default_value_t = EnergyArg::Full)]
     energy: EnergyArg,
+    /// How the poses are found (`search.solver` of the settings; this wins).
+    #[arg(long, value_enum)]
+    search: Option<crate::cli::args::SearchArg>,
     /// Track each capture with its masks' mouth label, without it (the label ignored: the
     /// same masks as teeth masks), or both, one row each.
     #[arg(long, value_delimiter = ',', default_value = "with,without")]
@@ -96,7 +99,7 @@ struct Bench<'a> {
 
 pub fn track(a: TrackArgs) -> anyhow::Result<()> {
     let tmp = tempfile::tempdir()?;
-    let settings = crate::cli::args::track_settings(a.settings.as_deref(), a.energy)?;
+    let settings = crate::cli::args::track_settings(a.settings.as_deref(), a.energy, a.search)?;
     let weights = settings.search.weights();
     let bench = Bench {
         args: &a,
