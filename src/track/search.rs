@@ -98,6 +98,10 @@ pub struct GaussNewtonSettings {
     /// back. Farther, the frame is lost and the paper's search, with the whole prior, takes
     /// it over.
     pub jaw_prior_nearest: usize,
+    /// A frame whose worse arch's area error exceeds this many times the recent frames'
+    /// typical one (or the tracker's bound of a low-confidence frame) goes to the paper's
+    /// search.
+    pub fallback_ratio: f64,
 }
 
 impl Default for GaussNewtonSettings {
@@ -111,6 +115,7 @@ impl Default for GaussNewtonSettings {
             contact_stiffness: 1000.0,
             manifold_stiffness: 1000.0,
             jaw_prior_nearest: 20,
+            fallback_ratio: 1.5,
         }
     }
 }

@@ -408,9 +408,6 @@ struct JointFound {
     poses: ArchPoses,
     /// Their energies (upper, lower).
     energies: [Energy; 2],
-    /// An arch's area error is above the bound of a lost frame: the paper's search takes
-    /// the frame over.
-    lost: bool,
     evaluations: usize,
 }
 
@@ -580,13 +577,9 @@ impl Run<'_> {
             .min_by(|a, b| a.1.0.total_cmp(&b.1.0))
             .expect("candidates");
         evaluations += 2 * candidates.len();
-        let lost = energies
-            .iter()
-            .any(|e| e.area_error() > self.settings.low_confidence_area_error);
         Ok(JointFound {
             poses: best,
             energies,
-            lost,
             evaluations,
         })
     }
@@ -623,7 +616,15 @@ fn track_frame(
     if let (Solver::GaussNewton, Some(edges)) = (settings.search.solver, &run.edges) {
         let found = run.joint(&*engine, masks, edges, &starts)?;
         evaluations += found.evaluations;
-        if !found.lost {
+        // A frame that fits worse than the recent ones (the confidence rule with the
+        // solver's own, stricter ratio) is taken over by the paper's search, with the whole
+        // jaw prior: an arch the masks barely show (lips closing) may have slid away.
+        let worst = found.energies.iter().map(Energy::area_error).fold(0.0, f64::max);
+        let strict = TrackSettings {
+            low_confidence_ratio: settings.search.gauss_newton.fallback_ratio,
+            ..settings.clone()
+        };
+        if confidence(&strict, state, worst) == Status::Ok {
             let (poses, energies) = (found.poses, found.energies);
             return Ok(finish(settings, state, frame, poses, energies, evaluations));
         }
