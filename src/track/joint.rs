@@ -472,6 +472,7 @@ mod tests {
             &[],
             0.4,
             &GaussNewtonSettings {
+                reaches_px: vec![8.0, 4.0, 3.0, 3.0, 3.0],
                 motion_prior: 0.0,
                 ..GaussNewtonSettings::default()
             },
@@ -507,7 +508,7 @@ mod tests {
 
     /// With the mouth open both arches show their outlines (closed, the lower incisors hide
     /// behind the upper ones: the test from the truth above). From 1.5° and 1.5 mm off, more
-    /// than a frame's motion, the default ten steps bring each arch within a fifth of that.
+    /// than a frame's motion, ten steps (five stages) bring each arch within a fifth of that.
     #[test]
     fn both_arches_come_back_to_their_masks() {
         let [u, l] = aligned(

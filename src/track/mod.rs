@@ -1,8 +1,9 @@
-//! Tracking: the pose search per arch and frame (`search`), the frame loop around it
-//! (`sequence`) and where it stands between frames (`state`), the jaw prior's starts (`prior`), what anatomy adds to the objective
-//! (`penalties`: the arches' non-penetration, `contact`, and the jaw's manifold, `manifold`),
-//! tracks.json as it is written (`output`), scoring against ground truth (`score`) and
-//! overlays (`overlay`).
+//! Tracking: the pose search per arch and frame (`search`, the paper's), Gauss-Newton on the
+//! silhouettes per arch (`align`) and over both arches at once (`joint`), the frame loop around
+//! them (`sequence`) and where it stands between frames (`state`), the jaw prior's starts
+//! (`prior`), what anatomy adds to the objective (`penalties`: the arches' non-penetration,
+//! `contact`, and the jaw's manifold, `manifold`), tracks.json as it is written (`output`),
+//! scoring against ground truth (`score`) and overlays (`overlay`).
 
 pub mod align;
 pub mod contact;

@@ -619,7 +619,11 @@ fn track_frame(
         // A frame that fits worse than the recent ones (the confidence rule with the
         // solver's own, stricter ratio) is taken over by the paper's search, with the whole
         // jaw prior: an arch the masks barely show (lips closing) may have slid away.
-        let worst = found.energies.iter().map(Energy::area_error).fold(0.0, f64::max);
+        let worst = found
+            .energies
+            .iter()
+            .map(Energy::area_error)
+            .fold(0.0, f64::max);
         let strict = TrackSettings {
             low_confidence_ratio: settings.search.gauss_newton.fallback_ratio,
             ..settings.clone()
