@@ -119,6 +119,8 @@ impl ContourEdges {
         self.sampled(mesh, world_from_model, cam, spacing_px, Some(region), false)
     }
 
+    /// The samples of the silhouette edges (when `silhouettes`) and of the edges where
+    /// `region` meets the rest of the mesh.
     fn sampled(
         &self,
         mesh: &Mesh,
