@@ -196,13 +196,25 @@ pub fn track_summary(output: &Path, s: &Summary) {
         s.count(Status::NoData)
     );
     if s.tracked_now > 0 {
-        println!(
-            "time {:.2} s per frame ({} energy evaluations per frame, {:.2} ms each), backend {}",
-            s.seconds / s.tracked_now as f64,
-            s.evaluations / s.tracked_now,
-            s.seconds * 1e3 / s.evaluations.max(1) as f64,
-            s.backend
-        );
+        let per_frame = |n: usize| n as f64 / s.tracked_now as f64;
+        if s.steps > 0 {
+            // Time goes to the steps' drawing and sampling as well as to the evaluations.
+            println!(
+                "time {:.2} s per frame ({} energy evaluations per frame, {:.1} Gauss-Newton steps), backend {}",
+                s.seconds / s.tracked_now as f64,
+                s.evaluations / s.tracked_now,
+                per_frame(s.steps),
+                s.backend
+            );
+        } else {
+            println!(
+                "time {:.2} s per frame ({} energy evaluations per frame, {:.2} ms each), backend {}",
+                s.seconds / s.tracked_now as f64,
+                s.evaluations / s.tracked_now,
+                s.seconds * 1e3 / s.evaluations.max(1) as f64,
+                s.backend
+            );
+        }
     }
 }
 

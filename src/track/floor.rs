@@ -114,6 +114,8 @@ pub struct FloorTally {
     area_percent: [Vec<f64>; 2],
     pub seconds: f64,
     pub evaluations: usize,
+    /// Gauss-Newton steps (each a Jacobian of every silhouette sample).
+    pub steps: usize,
     pub frames: usize,
 }
 
@@ -123,6 +125,8 @@ pub struct FloorSummary {
     pub frames: usize,
     pub seconds_per_frame: f64,
     pub evaluations_per_frame: f64,
+    /// Gauss-Newton steps a frame: the derivative evaluations.
+    pub steps_per_frame: f64,
     /// Jaw and per-arch mean vertex error (mm): median, 95th percentile.
     pub jaw_error_mm: [f64; 2],
     pub upper_error_mm: [f64; 2],
@@ -169,6 +173,7 @@ impl FloorTally {
             frames: self.frames,
             seconds_per_frame: per_frame(self.seconds),
             evaluations_per_frame: per_frame(self.evaluations as f64),
+            steps_per_frame: per_frame(self.steps as f64),
             jaw_error_mm: two(&self.errors[2]),
             upper_error_mm: two(&self.errors[0]),
             lower_error_mm: two(&self.errors[1]),

@@ -213,6 +213,9 @@ pub struct FrameResult {
     pub energies: Option<[Energy; 2]>,
     pub status: Status,
     pub evaluations: usize,
+    /// Gauss-Newton steps (each a Jacobian of every silhouette sample; 0 for the paper's
+    /// search).
+    pub steps: usize,
     pub seconds: f64,
 }
 
@@ -409,6 +412,7 @@ struct JointFound {
     /// Their energies (upper, lower).
     energies: [Energy; 2],
     evaluations: usize,
+    steps: usize,
 }
 
 impl Run<'_> {
@@ -561,7 +565,7 @@ impl Run<'_> {
             weights.lambda,
             gn,
         );
-        let found = found.poses;
+        let (found, steps) = (found.poses, found.steps);
         // The result, each arch's result with the other's start, and the start: where the
         // steps made an arch worse (too few samples to hold it, an edge that is another's),
         // its start stands.
@@ -581,6 +585,7 @@ impl Run<'_> {
             poses: best,
             energies,
             evaluations,
+            steps,
         })
     }
 }
@@ -603,19 +608,21 @@ fn track_frame(
             energies: None,
             status: Status::NoData,
             evaluations: 0,
+            steps: 0,
             seconds: 0.0,
         });
     }
     engine.set_frame(masks)?;
     let weights = settings.search.weights();
     let objective = |e: &Energy| e.objective(&weights);
-    let mut evaluations = 0;
+    let (mut evaluations, mut steps) = (0, 0);
     // Start, per arch, from whichever fits this frame best: the last good pose, its
     // constant-velocity extrapolation, or the latest low-confidence estimate since.
     let starts = starts(state);
     if let (Solver::GaussNewton, Some(edges)) = (settings.search.solver, &run.edges) {
         let found = run.joint(&*engine, masks, edges, &starts)?;
         evaluations += found.evaluations;
+        steps = found.steps;
         // A frame that fits worse than the recent ones (the confidence rule with the
         // solver's own, stricter ratio) is taken over by the paper's search, with the whole
         // jaw prior: an arch the masks barely show (lips closing) may have slid away.
@@ -630,7 +637,8 @@ fn track_frame(
         };
         if confidence(&strict, state, worst) == Status::Ok {
             let (poses, energies) = (found.poses, found.energies);
-            return Ok(finish(settings, state, frame, poses, energies, evaluations));
+            let result = finish(settings, state, frame, poses, energies, evaluations);
+            return Ok(FrameResult { steps, ..result });
         }
     }
     let mut poses = state.last;
@@ -684,14 +692,8 @@ fn track_frame(
     let upper = engine.evaluate(Arch::Upper, &[poses])?.remove(0);
     let lower = engine.evaluate(Arch::Lower, &[poses])?.remove(0);
     evaluations += 2;
-    Ok(finish(
-        settings,
-        state,
-        frame,
-        poses,
-        [upper, lower],
-        evaluations,
-    ))
+    let result = finish(settings, state, frame, poses, [upper, lower], evaluations);
+    Ok(FrameResult { steps, ..result })
 }
 
 /// The frame's result at `poses` (their energies `[upper, lower]`), its confidence, and the
@@ -718,6 +720,7 @@ fn finish(
         energies: Some(energies),
         status,
         evaluations,
+        steps: 0,
         seconds: 0.0,
     }
 }

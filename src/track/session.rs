@@ -63,6 +63,8 @@ pub struct Summary {
     pub tracked_now: usize,
     pub seconds: f64,
     pub evaluations: usize,
+    /// Gauss-Newton steps ([`super::FrameResult::steps`]).
+    pub steps: usize,
     /// The engine and why it was chosen.
     pub backend: String,
 }
@@ -162,7 +164,7 @@ impl<'c> Session<'c> {
         on_frame: &mut dyn FnMut(&FrameResult),
     ) -> Result<Summary> {
         let started = Instant::now();
-        let (mut evaluations, mut tracked_now) = (0, 0);
+        let (mut evaluations, mut steps, mut tracked_now) = (0, 0, 0);
         let (capture, writer, overlays) = (self.capture, &mut self.writer, &self.options.overlays);
         track_frames(
             capture,
@@ -177,6 +179,7 @@ impl<'c> Session<'c> {
                     overlay::write_overlays(dir, capture, masks, &r.poses)?;
                 }
                 evaluations += r.evaluations;
+                steps += r.steps;
                 tracked_now += 1;
                 on_frame(r);
                 Ok(())
@@ -187,6 +190,7 @@ impl<'c> Session<'c> {
             tracked_now,
             seconds: started.elapsed().as_secs_f64(),
             evaluations,
+            steps,
             backend: self.backend,
         })
     }

@@ -252,6 +252,7 @@ fn track_capture(
     let summary = crate::cli::run::track(capture, options)?;
     tally.seconds += summary.seconds;
     tally.evaluations += summary.evaluations;
+    tally.steps += summary.steps;
     tally.frames += summary.tracked_now;
     Ok(summary)
 }
@@ -262,13 +263,14 @@ fn print_table(rows: &[TrackRow]) {
         "mean vertex error in mm (median / 95th percentile); floor = error of E's minimum found from the truth"
     );
     println!(
-        "{:<10} {:<8} {:<5} {:>6} {:>8} {:>7} {:>13} {:>13} {:>13} {:>13} {:>11} {:>9} {:>13}",
+        "{:<10} {:<8} {:<5} {:>6} {:>8} {:>7} {:>6} {:>13} {:>13} {:>13} {:>13} {:>11} {:>9} {:>13}",
         "preset",
         "masks",
         "mouth",
         "frames",
         "s/frame",
         "evals",
+        "steps",
         "jaw",
         "upper",
         "lower",
@@ -280,13 +282,14 @@ fn print_table(rows: &[TrackRow]) {
     for row in rows {
         let r = &row.summary;
         println!(
-            "{:<10} {:<8} {:<5} {:>6} {:>8.2} {:>7.0} {:>6.3}/{:<6.3} {:>6.3}/{:<6.3} {:>6.3}/{:<6.3} {:>6.3}/{:<6.3} {:>11.2} {:>9.2} {:>6.2}/{:<6.2}",
+            "{:<10} {:<8} {:<5} {:>6} {:>8.2} {:>7.0} {:>6.1} {:>6.3}/{:<6.3} {:>6.3}/{:<6.3} {:>6.3}/{:<6.3} {:>6.3}/{:<6.3} {:>11.2} {:>9.2} {:>6.2}/{:<6.2}",
             row.preset,
             row.masks,
             if row.mouth_label { "yes" } else { "no" },
             r.frames,
             r.seconds_per_frame,
             r.evaluations_per_frame,
+            r.steps_per_frame,
             r.jaw_error_mm[0],
             r.jaw_error_mm[1],
             r.upper_error_mm[0],
