@@ -9,7 +9,13 @@
 //! silhouette sample looks along its normal for its arch's mask edge (as in
 //! [`super::align`]), and Gauss-Newton minimises that integral by iteratively reweighted
 //! least squares: a sample's residual is d, its weight c·length/max(|d|, ε), so that the
-//! squares add up to the integral; ε, a fraction of a pixel, is the smoothing width.
+//! squares add up to the integral; ε, a fraction of a pixel, is the smoothing width. The
+//! BOI's edge where it meets the rest of the model counts too, past the mask (λ).
+//!
+//! A sample's offset is measured from the model's drawn edge, not its exact silhouette: a
+//! segmentation rounds the true edge to pixel centres as the rasteriser does, so the two agree
+//! at the true pose, where a rounded mask against the exact silhouette is off by up to half a
+//! pixel along every straight edge (the incisal edges) and nods the arch.
 //!
 //! The unknowns are two se(3) increments, ξ = [ξ_u; ξ_j]: the upper arch moves as
 //! `U ← exp(ξ_u)·U`, the lower with it and then by the jaw's own increment,
@@ -17,7 +23,8 @@
 //! anatomy says of the jaw (the arches do not pass through each other, the jaw moves on a
 //! low-dimensional manifold) are residuals in ξ_j only, and a lower-arch sample's row is
 //! `[r, r]` for its single-arch row `r` (both increments move it in the world, to first order
-//! alike).
+//! alike). A motion prior on each arch's displacement from the frame's start holds the
+//! directions the masks barely see where the last frame left them.
 //!
 //! Each stage (a reach, coarse to fine) draws both arches' depth and class buffer once per
 //! camera and samples their visible silhouettes; its steps move those samples by their
