@@ -1,14 +1,16 @@
 //! Tracking: the pose search per arch and frame (`search`, the paper's), Gauss-Newton on the
-//! silhouettes per arch (`align`) and over both arches at once (`joint`), the frame loop around
-//! them (`sequence`) and where it stands between frames (`state`), the jaw prior's starts
-//! (`prior`), what anatomy adds to the objective (`penalties`: the arches' non-penetration,
-//! `contact`, and the jaw's manifold, `manifold`), tracks.json as it is written (`output`),
-//! scoring against ground truth (`score`) and overlays (`overlay`).
+//! silhouettes per arch (`align`) and over both arches at once (`joint`; a frame of it,
+//! `joint_frame`), the frame loop around them (`sequence`, its settings in `settings`) and
+//! where it stands between frames (`state`), the jaw prior's starts (`prior`), what anatomy
+//! adds to the objective (`penalties`: the arches' non-penetration, `contact`, and the jaw's
+//! manifold, `manifold`), tracks.json as it is written (`output`), scoring against ground
+//! truth (`score`) and overlays (`overlay`).
 
 pub mod align;
 pub mod contact;
 pub mod floor;
 pub mod joint;
+pub mod joint_frame;
 pub mod manifold;
 pub mod output;
 pub mod overlay;
@@ -18,11 +20,11 @@ pub mod score;
 pub mod search;
 pub mod sequence;
 pub mod session;
+pub mod settings;
 pub mod state;
 
 pub use search::{ArchSearch, Found, SearchSettings, Solver, search};
-pub use sequence::{
-    FrameResult, LabelledSettings, MaskSource, Status, TrackSettings, track_frames,
-};
+pub use sequence::{FrameResult, MaskSource, Status, track_frames};
 pub use session::{Session, SessionOptions, Summary, score_records};
+pub use settings::{LabelledSettings, TrackSettings};
 pub use state::TrackState;

@@ -1,0 +1,172 @@
+//! A frame by the Gauss-Newton solver ([`super::joint`]): where it starts (the frame's starts,
+//! and the jaw prior's poses near them for the lower arch), what anatomy adds as residuals
+//! (the tracker's penalties as hinges), and which of result and start stands, by the energy.
+
+use super::align::FrameReads;
+use super::joint::{JawHinge, JointView, align_both};
+use super::penalties::Penalties;
+use super::prior::JawPrior;
+use super::search::SearchSettings;
+use crate::arch::{Arch, ArchPoses};
+use crate::capture::{Capture, FrameMasks, MaskMode};
+use crate::energy::contour::ContourEdges;
+use crate::energy::{Energy, EnergyEngine};
+use crate::error::Result;
+use crate::geometry::Pose;
+
+/// What stays the same over a run.
+pub struct JointFrame<'a> {
+    pub capture: &'a Capture,
+    pub search: &'a SearchSettings,
+    pub prior: &'a JawPrior,
+    pub penalties: &'a Penalties,
+    /// Each arch's contour edges (upper, lower).
+    pub edges: &'a [ContourEdges; 2],
+}
+
+/// What [`JointFrame::solve`] found.
+pub struct JointFound {
+    pub poses: ArchPoses,
+    /// Their energies (upper, lower).
+    pub energies: [Energy; 2],
+    pub evaluations: usize,
+    /// Gauss-Newton steps taken.
+    pub steps: usize,
+}
+
+impl JointFrame<'_> {
+    /// Each candidate scored on both arches: the objective of each plus the penalties, and
+    /// the energies (upper, lower).
+    fn score_both(
+        &self,
+        engine: &dyn EnergyEngine,
+        candidates: &[ArchPoses],
+    ) -> Result<Vec<(f64, [Energy; 2])>> {
+        let weights = self.search.weights();
+        let upper = engine.evaluate(Arch::Upper, candidates)?;
+        let lower = engine.evaluate(Arch::Lower, candidates)?;
+        Ok(upper
+            .into_iter()
+            .zip(lower)
+            .zip(candidates)
+            .map(|((u, l), c)| {
+                let total = u.objective(&weights) + l.objective(&weights) + self.penalties.of(c);
+                (total, [u, l])
+            })
+            .collect())
+    }
+
+    /// Both arches' poses by Gauss-Newton ([`align_both`]) from the best of the frame's
+    /// `starts`.
+    pub fn solve(
+        &self,
+        engine: &dyn EnergyEngine,
+        masks: &FrameMasks,
+        starts: &[ArchPoses],
+    ) -> Result<JointFound> {
+        let edges = self.edges;
+        let weights = self.search.weights();
+        let gn = &self.search.gauss_newton;
+        let mut evaluations = 0;
+        let scored = self.score_both(engine, starts)?;
+        evaluations += 2 * starts.len();
+        let (k, _) = scored
+            .iter()
+            .enumerate()
+            .min_by(|a, b| a.1.0.total_cmp(&b.1.0))
+            .expect("a start");
+        let mut start = starts[k];
+        if gn.jaw_prior_nearest > 0 {
+            // The lower arch from the jaw prior's poses near the starts too, placed on the
+            // upper arch just chosen.
+            let jaws: Vec<Pose> = starts.iter().map(ArchPoses::jaw).collect();
+            let mut options: Vec<ArchPoses> = starts
+                .iter()
+                .map(|s| start.with(Arch::Lower, s.lower))
+                .collect();
+            options.extend(
+                self.prior
+                    .nearest_to(&jaws, gn.jaw_prior_nearest)
+                    .iter()
+                    .map(|j| start.with(Arch::Lower, start.upper.compose(j))),
+            );
+            let energies = engine.evaluate(Arch::Lower, &options)?;
+            evaluations += options.len();
+            let (best, _) = options
+                .iter()
+                .zip(energies)
+                .map(|(o, e)| (o, e.objective(&weights) + self.penalties.of(o)))
+                .min_by(|a, b| a.1.total_cmp(&b.1))
+                .expect("options");
+            start = *best;
+        }
+        let reads = FrameReads::new(self.capture, masks);
+        let on: Vec<_> = (0..reads.len())
+            .map(|c| Arch::BOTH.map(|a| reads.on(c, a)))
+            .collect();
+        let extra: Vec<_> = (0..reads.len())
+            .map(|c| Arch::BOTH.map(|a| reads.extra(c, a, &weights)))
+            .collect();
+        let views: Vec<JointView> = (0..reads.len())
+            .map(|c| JointView {
+                camera: reads.camera(c),
+                masks: [&on[c][0], &on[c][1]],
+                extra: [Some(&extra[c][0]), Some(&extra[c][1])],
+            })
+            .collect();
+        let contact = self.penalties.contact.as_ref();
+        let manifold = self.penalties.manifold.as_ref();
+        let depth = |jaw: &Pose| contact.map_or(0.0, |c| c.depth(jaw));
+        let off = |jaw: &Pose| manifold.map_or(0.0, |m| m.distance_mm(jaw));
+        let mut hinges = Vec::new();
+        if let Some(c) = contact.filter(|_| gn.contact_stiffness > 0.0) {
+            hinges.push(JawHinge {
+                distance_mm: &depth,
+                tolerance_mm: c.tolerance_mm(),
+                stiffness: gn.contact_stiffness,
+            });
+        }
+        if let Some(m) = manifold.filter(|_| gn.manifold_stiffness > 0.0) {
+            hinges.push(JawHinge {
+                distance_mm: &off,
+                tolerance_mm: m.tolerance_mm(),
+                stiffness: gn.manifold_stiffness,
+            });
+        }
+        let apart = matches!(self.capture.mask_mode(), MaskMode::PerArch { .. });
+        let found = align_both(
+            [
+                (self.capture.upper(), &edges[0]),
+                (self.capture.lower(), &edges[1]),
+            ],
+            start,
+            &views,
+            apart,
+            &hinges,
+            weights.lambda,
+            gn,
+        );
+        let (found, steps) = (found.poses, found.steps);
+        // The result, each arch's result with the other's start, and the start: where the
+        // steps made an arch worse (too few samples to hold it, an edge that is another's),
+        // its start stands.
+        let candidates = [
+            found,
+            start.with(Arch::Upper, found.upper),
+            start.with(Arch::Lower, found.lower),
+            start,
+        ];
+        let (best, (_, energies)) = candidates
+            .into_iter()
+            .zip(self.score_both(engine, &candidates)?)
+            .min_by(|a, b| a.1.0.total_cmp(&b.1.0))
+            .expect("candidates");
+        evaluations += 2 * candidates.len();
+        Ok(JointFound {
+            poses: best,
+            energies,
+            evaluations,
+            steps,
+        })
+    }
+}

@@ -1,0 +1,187 @@
+//! The tracker's settings (`track --settings`): the search's, and what the frame loop adds
+//! around it (passes, confidence, the jaw prior, the penalties), each checked against its
+//! range (docs/settings.md).
+
+use super::search::SearchSettings;
+use crate::capture::Capture;
+use crate::error::Result;
+use crate::settings::Rules;
+
+#[derive(Debug, Clone, serde::Serialize, serde::Deserialize)]
+#[serde(default, deny_unknown_fields)]
+pub struct TrackSettings {
+    pub search: SearchSettings,
+    /// Passes over the two arches per frame (upper, then lower with the new upper). With
+    /// combined masks the arches compete for the same pixels and alternate until neither moves
+    /// more than `settle_mm`, at most `combined_passes` times; per-arch masks need one pass.
+    pub per_arch_passes: usize,
+    pub combined_passes: usize,
+    pub settle_mm: f64,
+    /// A frame is `low-confidence` when an arch's area error (uncovered / mask pixels) exceeds
+    /// `low_confidence_area_error`, or both `low_confidence_floor` and `low_confidence_ratio`
+    /// times the median area error of the last `confidence_window` good frames (a sudden
+    /// jump; the floor keeps clean data, whose area error is near zero, from tripping it).
+    pub low_confidence_area_error: f64,
+    pub low_confidence_floor: f64,
+    pub low_confidence_ratio: f64,
+    pub confidence_window: usize,
+    /// Extra starts for the lower arch from an average temporomandibular joint fitted to the
+    /// capture's meshes (the jaw moves on a low-dimensional manifold): a grid of this many
+    /// openings, lateral excursions and protrusions, each placed on the frame's upper arch;
+    /// the energy picks among them and the usual starts. Both mask modes. [0, 0, 0] turns
+    /// it off.
+    pub jaw_prior_grid: [usize; 3],
+    /// And the `jaw_prior_nearest` poses of a finer grid (`jaw_prior_fine_grid`) nearest to the
+    /// frame's starts.
+    pub jaw_prior_fine_grid: [usize; 3],
+    pub jaw_prior_nearest: usize,
+    /// Each arch is searched from this many of its best starts (at least 1 mm apart) and
+    /// keeps the best result: the energy has many shallow minima, and the best start is not
+    /// always in the deepest one's basin.
+    pub restarts: usize,
+    /// The arches cannot pass through each other (`contact`): every candidate whose lower
+    /// crowns reach more than `contact_tolerance_mm` into the upper ones (along the occlusal
+    /// axis) costs `contact_weight` objective units (pixels) per mm beyond. 0 turns it off.
+    pub contact_weight: f64,
+    pub contact_tolerance_mm: f64,
+    /// The jaw moves on a low-dimensional manifold (`manifold`): every candidate whose jaw
+    /// pose lies more than `jaw_manifold_tolerance_mm` from the average joint's (the three
+    /// principal directions of the jaw prior's fine grid, in the rig's se(3) coordinates)
+    /// costs `jaw_manifold_weight` objective units per mm beyond. It steers both arches
+    /// along the directions the energy cannot tell apart (a tilt about the incisal edge).
+    /// Per-arch masks only: a combined mask's one label cannot tell the arches apart, so the
+    /// manifold would pull the jaw toward the average joint against evidence it cannot
+    /// weigh. Built from the fine grid, so off with it too; 0 turns it off.
+    pub jaw_manifold_weight: f64,
+    pub jaw_manifold_tolerance_mm: f64,
+    /// What replaces the fields above when the masks label the mouth (`masks.mouth`) and
+    /// `search.mouth_weight` is above 0.
+    pub labelled: LabelledSettings,
+}
+
+/// The profile for masks that label the visible mouth interior: the energy is then two-sided
+/// and has fewer false minima, so a coarser jaw prior and one sampling round suffice
+/// (docs/tracking.md, "The two-sided energy", has the figures). Without the label (or with
+/// the term off) the settings above apply as they are.
+#[derive(Debug, Clone, serde::Serialize, serde::Deserialize)]
+#[serde(default, deny_unknown_fields)]
+pub struct LabelledSettings {
+    pub jaw_prior_grid: [usize; 3],
+    pub jaw_prior_nearest: usize,
+    pub sample_rounds: usize,
+}
+
+impl Default for LabelledSettings {
+    fn default() -> Self {
+        LabelledSettings {
+            jaw_prior_grid: [5, 3, 3],
+            jaw_prior_nearest: 20,
+            sample_rounds: 1,
+        }
+    }
+}
+
+impl Default for TrackSettings {
+    fn default() -> Self {
+        TrackSettings {
+            search: SearchSettings::default(),
+            per_arch_passes: 1,
+            combined_passes: 3,
+            settle_mm: 0.02,
+            low_confidence_area_error: 0.25,
+            low_confidence_floor: 0.03,
+            low_confidence_ratio: 2.5,
+            confidence_window: 15,
+            jaw_prior_grid: [7, 5, 3],
+            jaw_prior_fine_grid: [31, 11, 6],
+            jaw_prior_nearest: 60,
+            restarts: 1,
+            contact_weight: 100.0,
+            contact_tolerance_mm: 1.0,
+            jaw_manifold_weight: 60.0,
+            jaw_manifold_tolerance_mm: 0.3,
+            labelled: LabelledSettings::default(),
+        }
+    }
+}
+
+impl TrackSettings {
+    /// Every field in its range (see [`crate::settings`]); errors name `settings` as the
+    /// source. Use [`TrackSettings::validate_from`] to name a file.
+    pub fn validate(&self) -> Result<()> {
+        self.validate_from(std::path::Path::new("settings"))
+    }
+
+    pub fn validate_from(&self, source: &std::path::Path) -> Result<()> {
+        let rules = Rules::new(source);
+        self.search.validate(&rules.within("search"))?;
+        // A search's seed packs the pass in 4 bits and the restart in 7 (see `track_frame`).
+        rules.count("per_arch_passes", self.per_arch_passes as u64, 1, 16)?;
+        rules.count("combined_passes", self.combined_passes as u64, 1, 16)?;
+        rules.number("settle_mm", self.settle_mm, 0.0, 100.0)?;
+        rules.number(
+            "low_confidence_area_error",
+            self.low_confidence_area_error,
+            0.0,
+            1.0,
+        )?;
+        rules.number("low_confidence_floor", self.low_confidence_floor, 0.0, 1.0)?;
+        rules.number("low_confidence_ratio", self.low_confidence_ratio, 0.0, 1e6)?;
+        rules.count(
+            "confidence_window",
+            self.confidence_window as u64,
+            1,
+            10_000,
+        )?;
+        rules.grid("jaw_prior_grid", &self.jaw_prior_grid, 100, 10_000)?;
+        rules.grid(
+            "jaw_prior_fine_grid",
+            &self.jaw_prior_fine_grid,
+            200,
+            100_000,
+        )?;
+        rules.count(
+            "jaw_prior_nearest",
+            self.jaw_prior_nearest as u64,
+            0,
+            10_000,
+        )?;
+        rules.count("restarts", self.restarts as u64, 1, 100)?;
+        rules.number("contact_weight", self.contact_weight, 0.0, 1e6)?;
+        rules.number(
+            "contact_tolerance_mm",
+            self.contact_tolerance_mm,
+            0.0,
+            100.0,
+        )?;
+        rules.number("jaw_manifold_weight", self.jaw_manifold_weight, 0.0, 1e6)?;
+        rules.number(
+            "jaw_manifold_tolerance_mm",
+            self.jaw_manifold_tolerance_mm,
+            0.0,
+            100.0,
+        )?;
+        let labelled = rules.within("labelled");
+        labelled.grid("jaw_prior_grid", &self.labelled.jaw_prior_grid, 100, 10_000)?;
+        labelled.count(
+            "jaw_prior_nearest",
+            self.labelled.jaw_prior_nearest as u64,
+            0,
+            10_000,
+        )?;
+        labelled.count("sample_rounds", self.labelled.sample_rounds as u64, 0, 100)?;
+        Ok(())
+    }
+
+    /// The settings a capture is tracked with: `labelled`'s in place of the fields they
+    /// replace when its masks label the mouth and the over-mouth term is on.
+    pub fn for_capture(&self, capture: &Capture) -> TrackSettings {
+        let mut s = self.clone();
+        if capture.mouth().is_some() && self.search.mouth_weight > 0.0 {
+            s.jaw_prior_grid = self.labelled.jaw_prior_grid;
+            s.jaw_prior_nearest = self.labelled.jaw_prior_nearest;
+            s.search.sample_rounds = self.labelled.sample_rounds;
+        }
+        s
+    }
+}
