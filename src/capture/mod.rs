@@ -155,6 +155,12 @@ impl Capture {
         self.cameras[k].mask_size = Some(size);
     }
 
+    /// The same capture without init.json: tracking then finds the first frame's poses.
+    pub fn without_init(mut self) -> Capture {
+        self.init = None;
+        self
+    }
+
     /// The same capture with its mouth label read as background, as the paper's energy
     /// reads every mask (a comparison with and without the label).
     pub fn without_mouth_label(mut self) -> Capture {

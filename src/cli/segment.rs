@@ -56,6 +56,14 @@ pub fn run(args: Args) -> anyhow::Result<()> {
              teeth alone (add e.g. \"mouth\": 40 to keep the mouth interior)"
         );
     }
+    if capture.init().is_none() {
+        anyhow::bail!(
+            "{}: not found: segment starts its colour models from the arches drawn at the first \
+             frame's poses (init.json's poses or bootstrap points); tracking without init.json \
+             needs masks",
+            capture.dir().join("init.json").display()
+        );
+    }
     let sizes = prepare(&mut capture)?;
     let track_options = a.session_options(&capture)?;
     let session = Session::open(&capture, track_options)?;

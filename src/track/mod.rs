@@ -1,6 +1,6 @@
 //! Tracking: the pose search per arch and frame (`search`, the paper's), Gauss-Newton on the
 //! silhouettes per arch (`align`) and over both arches at once (`joint`; a frame of it,
-//! `joint_frame`), the frame loop around them (`sequence`, its settings in `settings`) and
+//! `joint_frame`), both arches found from the masks alone (`locate`: no init.json, or lost), the frame loop around them (`sequence`, its settings in `settings`) and
 //! where it stands between frames (`state`), the jaw prior's starts (`prior`), what anatomy
 //! adds to the objective (`penalties`: the arches' non-penetration, `contact`, and the jaw's
 //! manifold, `manifold`), tracks.json as it is written (`output`), scoring against ground
@@ -11,6 +11,7 @@ pub mod contact;
 pub mod floor;
 pub mod joint;
 pub mod joint_frame;
+pub mod locate;
 pub mod manifold;
 pub mod output;
 pub mod overlay;

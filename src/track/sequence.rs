@@ -11,6 +11,7 @@ use nalgebra::Vector3;
 use super::align::{ArchAlign, align_arch};
 use super::contact::{Contact, ContactSettings};
 use super::joint_frame::JointFrame;
+use super::locate::relocate;
 use super::manifold::JawManifold;
 use super::penalties::Penalties;
 use super::prior::JawPrior;
@@ -321,6 +322,8 @@ fn track_frame(
         };
         if confidence(&strict, state, worst) == Status::Ok {
             let (poses, energies) = (found.poses, found.energies);
+            let (poses, energies) =
+                relocated(run, engine, masks, (poses, energies), &mut evaluations)?;
             let result = finish(settings, state, frame, poses, energies, evaluations);
             return Ok(FrameResult { steps, ..result });
         }
@@ -376,8 +379,46 @@ fn track_frame(
     let upper = engine.evaluate(Arch::Upper, &[poses])?.remove(0);
     let lower = engine.evaluate(Arch::Lower, &[poses])?.remove(0);
     evaluations += 2;
-    let result = finish(settings, state, frame, poses, [upper, lower], evaluations);
+    let (poses, energies) = relocated(
+        run,
+        engine,
+        masks,
+        (poses, [upper, lower]),
+        &mut evaluations,
+    )?;
+    let result = finish(settings, state, frame, poses, energies, evaluations);
     Ok(FrameResult { steps, ..result })
+}
+
+/// A frame lost (worse than any tracked frame may be) has its arches looked for afresh, from
+/// its masks alone ([`relocate`]); they are taken where they fit better, penalties included.
+fn relocated(
+    run: &Run,
+    engine: &dyn EnergyEngine,
+    masks: &FrameMasks,
+    (poses, energies): (ArchPoses, [Energy; 2]),
+    evaluations: &mut usize,
+) -> Result<(ArchPoses, [Energy; 2])> {
+    let settings = &run.settings;
+    let worst = energies.iter().map(Energy::area_error).fold(0.0, f64::max);
+    if worst <= settings.relocate_area_error {
+        return Ok((poses, energies));
+    }
+    let Some(found) = relocate(run.capture, engine, masks, settings)? else {
+        return Ok((poses, energies));
+    };
+    *evaluations += found.evaluations;
+    let weights = settings.search.weights();
+    let total = |p: &ArchPoses, e: &[Energy; 2]| {
+        e[0].objective(&weights) + e[1].objective(&weights) + run.penalties.of(p)
+    };
+    Ok(
+        if total(&found.poses, &found.energies) < total(&poses, &energies) {
+            (found.poses, found.energies)
+        } else {
+            (poses, energies)
+        },
+    )
 }
 
 /// The frame's result at `poses` (their energies `[upper, lower]`), its confidence, and the

@@ -7,6 +7,7 @@ use std::ops::Range;
 use std::path::{Path, PathBuf};
 use std::time::Instant;
 
+use super::locate::locate;
 use super::output::TracksWriter;
 use super::overlay;
 use super::score::{ScoreReport, score};
@@ -116,7 +117,28 @@ impl<'c> Session<'c> {
             .max(range.start);
         // A resumed run goes on from the state the earlier one ended in, replayed from its
         // records: the same starts, velocity and recent area errors.
-        let start = capture.initial_poses()?;
+        let opened = open_engine(
+            options.backend,
+            Scene::from_capture(capture),
+            options.region,
+        )?;
+        let mut engine = opened.engine;
+        let start = match capture.init() {
+            Some(_) => capture.initial_poses()?,
+            // Without init.json the arches are found in the run's first frame (a resumed run
+            // finds the same poses again: the search depends on that frame's masks alone).
+            None => {
+                let masks = capture.load_masks(range.start)?;
+                engine.set_frame(&masks)?;
+                locate(
+                    capture,
+                    engine.as_ref(),
+                    &masks,
+                    &options.settings.for_capture(capture),
+                )?
+                .poses
+            }
+        };
         let state = if options.resume {
             TrackState::replay(
                 start,
@@ -127,17 +149,12 @@ impl<'c> Session<'c> {
         } else {
             TrackState::new(start)
         };
-        let opened = open_engine(
-            options.backend,
-            Scene::from_capture(capture),
-            options.region,
-        )?;
         Ok(Session {
             capture,
             writer,
             state,
             todo: next..range.end,
-            engine: opened.engine,
+            engine,
             backend: opened.choice,
             options,
         })

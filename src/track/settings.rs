@@ -22,6 +22,12 @@ pub struct TrackSettings {
     /// times the median area error of the last `confidence_window` good frames (a sudden
     /// jump; the floor keeps clean data, whose area error is near zero, from tripping it).
     pub low_confidence_area_error: f64,
+    /// A frame whose worse arch's area error exceeds this after its search is taken as lost:
+    /// both arches are looked for afresh from its masks alone (`locate`, as for a capture
+    /// without init.json) and kept where they fit better. 1 turns it off. (Left out of the
+    /// output's fingerprint at its default, so runs from before it resume.)
+    #[serde(skip_serializing_if = "is_default_relocate")]
+    pub relocate_area_error: f64,
     pub low_confidence_floor: f64,
     pub low_confidence_ratio: f64,
     pub confidence_window: usize,
@@ -81,6 +87,12 @@ impl Default for LabelledSettings {
     }
 }
 
+const DEFAULT_RELOCATE: f64 = 0.1;
+
+fn is_default_relocate(v: &f64) -> bool {
+    *v == DEFAULT_RELOCATE
+}
+
 impl Default for TrackSettings {
     fn default() -> Self {
         TrackSettings {
@@ -89,6 +101,7 @@ impl Default for TrackSettings {
             combined_passes: 3,
             settle_mm: 0.02,
             low_confidence_area_error: 0.25,
+            relocate_area_error: DEFAULT_RELOCATE,
             low_confidence_floor: 0.03,
             low_confidence_ratio: 2.5,
             confidence_window: 15,
@@ -125,6 +138,7 @@ impl TrackSettings {
             0.0,
             1.0,
         )?;
+        rules.number("relocate_area_error", self.relocate_area_error, 0.0, 1.0)?;
         rules.number("low_confidence_floor", self.low_confidence_floor, 0.0, 1.0)?;
         rules.number("low_confidence_ratio", self.low_confidence_ratio, 0.0, 1e6)?;
         rules.count(

@@ -60,6 +60,10 @@ pub struct TrackArgs {
     /// Segmentation errors that persist from frame to frame (see `synth --persistent-noise`).
     #[arg(long)]
     persistent_noise: bool,
+    /// Track as if the captures had no init.json: the first frame's poses found from its
+    /// masks alone.
+    #[arg(long)]
+    no_init: bool,
     /// Skip the energy's floor (its columns print as NaN): for comparing search settings,
     /// which do not change it, in half the time.
     #[arg(long)]
@@ -231,6 +235,9 @@ fn open_capture(
     let mut capture = Capture::open_with(dir, a.load.open_options())?;
     if label == MouthLabel::Without {
         capture = capture.without_mouth_label();
+    }
+    if a.no_init {
+        capture = capture.without_init();
     }
     Ok(capture)
 }

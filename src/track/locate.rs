@@ -1,0 +1,531 @@
+//! Both arches found in one frame from its masks alone: where a capture has no init.json, and
+//! where tracking has lost them.
+//!
+//! The masks and the cameras' geometry give a coarse pose; the energy and the Gauss-Newton
+//! solver do the rest. The teeth pixels' centroids, triangulated, place the teeth; the subject
+//! faces the cameras, so the arch's anterior axis points from the teeth to the cameras' mean
+//! centre; the teeth form a band across each image, whose long axis, back-projected, is the
+//! arch's left-right axis (each camera's plane through its centre and that axis holds it). The
+//! cameras' own "up" gives a second guess at that roll, for a mouth so wide open that the band
+//! stands upright. Which way is up along the roll is not told by a band (a half turn about the
+//! anterior axis looks alike), and neither are the arch's pitch (the cameras may look from
+//! below) or a few degrees of yaw: those are tried on a grid, each hypothesis moved until its
+//! drawn teeth's centroids triangulate to the masks', and the energy ranks them. The lower arch
+//! comes from the jaw prior on the best upper arches (both ways up, for the same reason), then
+//! Gauss-Newton refines both together ([`JointFrame`]), tilting both about their left-right
+//! axis to get out of the valley the lips leave (they hide the gums that would tell the tilt),
+//! and the energy picks the result. Per-arch masks only: one label for both arches' teeth
+//! leaves the pair's common rotation loose.
+
+use nalgebra::{Matrix2, Rotation3, SymmetricEigen, Vector2, Vector3};
+
+use rayon::prelude::*;
+
+use super::align::{AlignSettings, FrameReads, MaskView, align};
+use super::joint_frame::{JointFound, JointFrame};
+use super::penalties::Penalties;
+use super::prior::JawPrior;
+use super::settings::TrackSettings;
+use crate::anatomy::scan_frame::scan_frame;
+use crate::arch::{Arch, ArchPoses};
+use crate::capture::{Capture, FrameMasks, MaskMode};
+use crate::energy::contour::ContourEdges;
+use crate::energy::raster::render_target;
+use crate::energy::target::{CLASS_BODY, CLASS_BOI, CLASS_NONE};
+use crate::energy::{Energy, EnergyEngine, Weights};
+use crate::error::{Error, Result};
+use crate::geometry::{Camera, Pose, triangulate};
+use crate::mesh::Mesh;
+
+/// A camera needs this many teeth pixels (at mask resolution) to take part.
+const MIN_PIXELS: u64 = 40;
+/// The pitch grid (degrees about the arch's left-right axis) and yaw grid (about its up axis).
+const PITCH_DEG: [f64; 7] = [-30.0, -20.0, -10.0, 0.0, 10.0, 20.0, 30.0];
+const YAW_DEG: [f64; 3] = [-15.0, 0.0, 15.0];
+/// How far (pixels) the upper arch's alignment looks for the masks' edges, coarse to fine:
+/// wider than tracking's first reach, since a hypothesis is centred only to a few mm.
+const REACHES_PX: [f64; 6] = [16.0, 8.0, 4.0, 2.0, 1.0, 1.0];
+/// Rolls closer than this (degrees) to one already tried are the same guess.
+const SAME_ROLL_DEG: f64 = 10.0;
+/// Centroid-matching rounds per hypothesis.
+const CENTRING_ROUNDS: usize = 2;
+/// How many of the ranked upper-arch hypotheses go on to the lower arch and the solver.
+const KEEP: usize = 4;
+/// The tilts (degrees) tried about the arches' left-right axis, coarse to fine.
+const TILT_DEG: [u32; 3] = [4, 2, 1];
+/// Solver runs per start at most at most, and the share of the objective a run must gain for
+/// another.
+const MAX_SOLVES: usize = 6;
+const MIN_GAIN: f64 = 0.01;
+/// A located frame whose objective exceeds this share of its mask pixels (on either arch) is
+/// not trusted: the masks did not show the arches well enough to place them.
+const MAX_MISFIT: f64 = 0.5;
+
+/// What [`locate`] found.
+pub struct Located {
+    pub poses: ArchPoses,
+    pub energies: [Energy; 2],
+    /// Energy evaluations spent.
+    pub evaluations: usize,
+    /// The worse arch's objective per mask pixel: 0 for a perfect fit.
+    pub misfit: f64,
+}
+
+/// One camera's teeth pixels: their centroid and their long axis (unit), in pixels
+/// at mask resolution.
+struct Blob<'a> {
+    camera: &'a Camera,
+    centroid: Vector2<f64>,
+    axis: Vector2<f64>,
+}
+
+fn blob<'a>(camera: &'a Camera, data: &[u8], width: u32, bits: u8) -> Option<Blob<'a>> {
+    let (mut n, mut sum, mut sq) = (0u64, Vector2::zeros(), Matrix2::zeros());
+    for (i, &v) in data.iter().enumerate() {
+        if v & bits != 0 {
+            let p = Vector2::new(
+                (i as u32 % width) as f64 + 0.5,
+                (i as u32 / width) as f64 + 0.5,
+            );
+            n += 1;
+            sum += p;
+            sq += p * p.transpose();
+        }
+    }
+    if n < MIN_PIXELS {
+        return None;
+    }
+    let centroid = sum / n as f64;
+    let cov = sq / n as f64 - centroid * centroid.transpose();
+    let eigen = SymmetricEigen::new(cov);
+    let major = if eigen.eigenvalues[0] >= eigen.eigenvalues[1] {
+        0
+    } else {
+        1
+    };
+    Some(Blob {
+        camera,
+        centroid,
+        axis: eigen.eigenvectors.column(major).into_owned(),
+    })
+}
+
+/// The world direction of the ray through pixel `px`.
+fn ray(camera: &Camera, px: Vector2<f64>) -> Vector3<f64> {
+    let n = camera.pixel_to_normalised(px);
+    camera.camera_from_world.rotation.inverse() * Vector3::new(n.x, n.y, 1.0)
+}
+
+/// The unit vector perpendicular to `z` that lies closest to every plane of `normals` (the
+/// least-squares null direction within the plane perpendicular to `z`).
+fn in_planes(normals: &[Vector3<f64>], z: &Vector3<f64>) -> Vector3<f64> {
+    let e1 = z
+        .cross(&Vector3::x())
+        .try_normalize(1e-6)
+        .unwrap_or_else(|| z.cross(&Vector3::y()).normalize());
+    let e2 = z.cross(&e1);
+    let mut m = Matrix2::zeros();
+    for n in normals {
+        let v = Vector2::new(n.dot(&e1), n.dot(&e2));
+        m += v * v.transpose();
+    }
+    let eigen = SymmetricEigen::new(m);
+    let minor = if eigen.eigenvalues[0] <= eigen.eigenvalues[1] {
+        0
+    } else {
+        1
+    };
+    let c = eigen.eigenvectors.column(minor);
+    (e1 * c[0] + e2 * c[1]).normalize()
+}
+
+/// Where the arches' hypotheses start: the teeth's triangulated centroid and the world axes
+/// each roll guess gives (columns: left, up, anterior).
+struct Frame {
+    teeth: Vector3<f64>,
+    anterior: Vector3<f64>,
+    axes: Vec<Rotation3<f64>>,
+}
+
+/// `None` when the centroids do not triangulate (rays that do not meet in front of the
+/// cameras).
+fn world_frame(blobs: &[Blob]) -> Option<Frame> {
+    let views: Vec<_> = blobs.iter().map(|b| (b.camera, b.centroid)).collect();
+    let teeth = triangulate(&views).ok()?;
+    let centres: Vector3<f64> = blobs
+        .iter()
+        .map(|b| b.camera.centre_world())
+        .sum::<Vector3<f64>>()
+        / blobs.len() as f64;
+    let anterior = (centres - teeth).normalize();
+    let normals: Vec<_> = blobs
+        .iter()
+        .map(|b| {
+            ray(b.camera, b.centroid)
+                .cross(&ray(b.camera, b.centroid + b.axis * 10.0))
+                .normalize()
+        })
+        .collect();
+    let from_band = in_planes(&normals, &anterior);
+    // The cameras' up (image −y) averaged, as a left-right axis: up × anterior.
+    let up: Vector3<f64> = blobs
+        .iter()
+        .map(|b| b.camera.camera_from_world.rotation.inverse() * -Vector3::y())
+        .sum();
+    let from_cameras = up.cross(&anterior).try_normalize(1e-6);
+    let mut lefts = vec![from_band];
+    if let Some(l) = from_cameras {
+        if l.dot(&from_band).abs() < SAME_ROLL_DEG.to_radians().cos() {
+            lefts.push(l);
+        }
+    }
+    let axes = lefts
+        .iter()
+        .flat_map(|&l| [l, -l])
+        .map(|left| {
+            let left = (left - anterior * anterior.dot(&left)).normalize();
+            let up = anterior.cross(&left);
+            Rotation3::from_matrix_unchecked(nalgebra::Matrix3::from_columns(&[left, up, anterior]))
+        })
+        .collect();
+    Some(Frame {
+        teeth,
+        anterior,
+        axes,
+    })
+}
+
+/// The pixels `mesh` at `pose` draws as teeth (its BOI, or all of it without one): their
+/// centroids triangulated.
+fn drawn_centre(mesh: &Mesh, pose: &Pose, cameras: &[&Camera]) -> Option<Vector3<f64>> {
+    let has_boi = mesh.boi.iter().any(|&b| b);
+    let mut views = Vec::new();
+    for cam in cameras {
+        let target = render_target(cam, &[(mesh, pose, CLASS_BODY, CLASS_BOI)]);
+        let (mut n, mut sum) = (0u64, Vector2::zeros());
+        for (i, &c) in target.class.iter().enumerate() {
+            let teeth = if has_boi {
+                c == CLASS_BOI
+            } else {
+                c != CLASS_NONE
+            };
+            if teeth {
+                n += 1;
+                sum += Vector2::new(
+                    (i as u32 % cam.width) as f64 + 0.5,
+                    (i as u32 / cam.width) as f64 + 0.5,
+                );
+            }
+        }
+        if n >= MIN_PIXELS {
+            views.push((*cam, sum / n as f64));
+        }
+    }
+    (views.len() >= 2)
+        .then(|| triangulate(&views).ok())
+        .flatten()
+}
+
+/// A jaw pose (upper_from_lower) that puts each arch on the side of the other its `up` axes
+/// (model frames) say: enough for the jaw prior, which takes only that from it.
+fn jaw_guess(upper: &Mesh, lower: &Mesh, upper_up: &Vector3<f64>, lower_up: &Vector3<f64>) -> Pose {
+    let (su, sl) = (scan_frame(upper, upper_up), scan_frame(lower, lower_up));
+    let rotation = su.inverse() * sl;
+    let (um, lm) = (upper.principal_axes().0, lower.principal_axes().0);
+    let below = um - su.inverse() * Vector3::y() * 10.0;
+    Pose::new(rotation, below - rotation * lm)
+}
+
+/// Why [`find`] found nothing.
+enum NotFound {
+    /// Combined masks: both arches' teeth are one label, and a pair of arches turned together
+    /// by ten degrees fits them about as well as the true pair (measured: a 2.8 mm jaw median
+    /// where the same capture with init.json has 0.37).
+    Combined,
+    /// The teeth show in this many cameras only.
+    Unseen(usize),
+    /// The teeth's centroids do not triangulate.
+    Unplaced,
+    /// The best pose's misfit: above [`MAX_MISFIT`].
+    Misfit(f64),
+}
+
+/// Both arches' poses in the frame of `masks` (already given to `engine`), from the masks
+/// alone. Errors (naming the capture's masks) when fewer than two cameras see the teeth or
+/// when the best pose found does not fit them.
+pub fn locate(
+    capture: &Capture,
+    engine: &dyn EnergyEngine,
+    masks: &FrameMasks,
+    settings: &TrackSettings,
+) -> Result<Located> {
+    let problem = match find(capture, engine, masks, settings)? {
+        Ok(located) => return Ok(located),
+        Err(NotFound::Unseen(n)) => format!(
+            "the teeth show in {n} camera(s) (at least {MIN_PIXELS} mask pixels); placing the \
+             arches without init.json needs two"
+        ),
+        Err(NotFound::Combined) => "with combined masks (one label for both arches' teeth) the \
+            arches cannot be placed from the masks alone; give the first frame's poses in \
+            init.json, or label each arch"
+            .to_string(),
+        Err(NotFound::Unplaced) => "the teeth's centroids in the cameras do not triangulate \
+            to a point in front of them (check the cameras' calibration)"
+            .to_string(),
+        Err(NotFound::Misfit(misfit)) => format!(
+            "no pose of the arches fits these masks (best misfit {misfit:.2} of the mask \
+             pixels, at most {MAX_MISFIT}); give the first frame's poses in init.json"
+        ),
+    };
+    Err(Error::invalid(
+        capture.mask_dir(),
+        format!("frame {}", masks.frame),
+        problem,
+    ))
+}
+
+/// [`locate`] where finding nothing is an answer (a lost frame that stays lost), not an error.
+pub fn relocate(
+    capture: &Capture,
+    engine: &dyn EnergyEngine,
+    masks: &FrameMasks,
+    settings: &TrackSettings,
+) -> Result<Option<Located>> {
+    Ok(find(capture, engine, masks, settings)?.ok())
+}
+
+fn find(
+    capture: &Capture,
+    engine: &dyn EnergyEngine,
+    masks: &FrameMasks,
+    settings: &TrackSettings,
+) -> Result<std::result::Result<Located, NotFound>> {
+    if matches!(capture.mask_mode(), MaskMode::Combined) {
+        return Ok(Err(NotFound::Combined));
+    }
+    let cameras: Vec<(Camera, &crate::capture::LabelMask)> = capture
+        .cameras()
+        .iter()
+        .zip(&masks.masks)
+        .filter_map(|(c, m)| Some((c.mask_camera()?, m.as_ref()?)))
+        .collect();
+    let teeth_bits = Arch::Upper.mask_bit() | Arch::Lower.mask_bit();
+    let blobs = |bits: u8| -> Vec<Blob> {
+        cameras
+            .iter()
+            .filter_map(|(c, m)| blob(c, &m.data, m.width, bits))
+            .collect()
+    };
+    let teeth = blobs(teeth_bits);
+    if teeth.len() < 2 {
+        return Ok(Err(NotFound::Unseen(teeth.len())));
+    }
+    // The upper arch's own pixels where the masks label it (its band is the one to roll by).
+    let upper_blobs = blobs(Arch::Upper.mask_bit());
+    let upper_seen = if upper_blobs.len() >= 2 {
+        &upper_blobs
+    } else {
+        &teeth
+    };
+    let Some(frame) = world_frame(upper_seen) else {
+        return Ok(Err(NotFound::Unplaced));
+    };
+    let target = triangulate(
+        &upper_seen
+            .iter()
+            .map(|b| (b.camera, b.centroid))
+            .collect::<Vec<_>>(),
+    )
+    .unwrap_or(frame.teeth);
+    let seen: Vec<&Camera> = upper_seen.iter().map(|b| b.camera).collect();
+
+    let (upper, lower) = (capture.upper(), capture.lower());
+    let weights = settings.search.weights();
+    let thinnest = upper.principal_axes().1[0];
+    let scan = scan_frame(upper, &thinnest);
+    // The upper arch's up (model frame): each hypothesis says where in the world it points.
+    let up = scan.inverse() * Vector3::y();
+    let anchor = upper
+        .boi_centroid()
+        .unwrap_or_else(|| upper.principal_axes().0);
+    // Each hypothesis: the upper arch's pose, moved until its drawn teeth centre on the masks',
+    // then aligned to them alone (the lower arch unknown yet).
+    let mut rotations = Vec::new();
+    for axes in &frame.axes {
+        for pitch in PITCH_DEG {
+            for yaw in YAW_DEG {
+                let turn = Rotation3::from_axis_angle(&Vector3::y_axis(), yaw.to_radians())
+                    * Rotation3::from_axis_angle(&Vector3::x_axis(), pitch.to_radians());
+                rotations.push(axes * turn * scan);
+            }
+        }
+    }
+    let reads = FrameReads::new(capture, masks);
+    let upper_edges = ContourEdges::of(upper);
+    let align_settings = AlignSettings {
+        reaches_px: REACHES_PX.to_vec(),
+        ..AlignSettings::default()
+    };
+    let hypotheses: Vec<Pose> = rotations
+        .par_iter()
+        .map(|&rotation| {
+            let mut pose = Pose::new(rotation, target - rotation * anchor);
+            for _ in 0..CENTRING_ROUNDS {
+                match drawn_centre(upper, &pose, &seen) {
+                    Some(drawn) => pose.translation += target - drawn,
+                    None => break,
+                }
+            }
+            let on: Vec<_> = (0..reads.len()).map(|k| reads.on(k, Arch::Upper)).collect();
+            let beyond: Vec<_> = (0..reads.len())
+                .map(|k| reads.beyond(k, Arch::Upper, &weights))
+                .collect();
+            let views: Vec<MaskView> = (0..reads.len())
+                .map(|k| MaskView {
+                    camera: reads.camera(k),
+                    mask: &on[k],
+                    beyond: Some(&beyond[k]),
+                })
+                .collect();
+            align((upper, &upper_edges), pose, &views, &[], &align_settings).pose
+        })
+        .collect();
+    // The lower arch far behind the subject while the upper arch is ranked: it hides nothing.
+    let away = Pose::from_translation(frame.teeth - frame.anterior * 5000.0);
+    let candidates: Vec<ArchPoses> = hypotheses
+        .iter()
+        .map(|&upper| ArchPoses { upper, lower: away })
+        .collect();
+    let mut evaluations = candidates.len();
+    let scores = engine.evaluate(Arch::Upper, &candidates)?;
+    let mut ranked: Vec<(f64, Pose)> = scores
+        .iter()
+        .zip(&hypotheses)
+        .map(|(e, p)| (e.objective(&weights), *p))
+        .collect();
+    ranked.sort_by(|a, b| a.0.total_cmp(&b.0));
+    let edges = [ContourEdges::of(upper), ContourEdges::of(lower)];
+    let lower_thinnest = lower.principal_axes().1[0];
+    let mut best: Option<Located> = None;
+    for &(_, upper_pose) in ranked.iter().take(KEEP) {
+        // Which side of each arch the other lies on is the meshes' own business (their crowns
+        // face each other): both ways, for each arch, and the energy decides.
+        let mut starts = Vec::new();
+        for upper_up in [up, -up] {
+            for lower_up in [lower_thinnest, -lower_thinnest] {
+                let jaw = jaw_guess(upper, lower, &upper_up, &lower_up);
+                let prior = JawPrior::new(
+                    upper,
+                    lower,
+                    &jaw,
+                    settings.jaw_prior_grid,
+                    settings.jaw_prior_fine_grid,
+                    settings.jaw_prior_nearest,
+                    super::sequence::centre(capture, Arch::Lower),
+                );
+                let options: Vec<ArchPoses> = prior
+                    .coarse
+                    .iter()
+                    .map(|j| ArchPoses {
+                        upper: upper_pose,
+                        lower: upper_pose.compose(j),
+                    })
+                    .collect();
+                evaluations += options.len();
+                let energies = engine.evaluate(Arch::Lower, &options)?;
+                let (start, objective) = options
+                    .iter()
+                    .zip(energies)
+                    .map(|(o, e)| (*o, e.objective(&weights)))
+                    .min_by(|a, b| a.1.total_cmp(&b.1))
+                    .expect("the jaw prior's grid");
+                starts.push((objective, start, prior));
+            }
+        }
+        let (_, start, prior) = starts
+            .into_iter()
+            .min_by(|a, b| a.0.total_cmp(&b.0))
+            .expect("four priors");
+        let solver = JointFrame {
+            capture,
+            search: &settings.search,
+            prior: &prior,
+            penalties: &Penalties::NONE,
+            edges: &edges,
+        };
+        let mut found = refine(&solver, engine, masks, start, &weights, &mut evaluations)?;
+        // The nod: masks that show the teeth's edges and not the gums barely tell the occlusal
+        // plane's tilt, and the solver stays near the tilt a hypothesis had; both arches are
+        // tilted about their left-right axis, each tilt solved, while one pays.
+        let left = found.poses.upper.rotation * (scan.inverse() * Vector3::x());
+        for step in TILT_DEG {
+            for sign in [-1.0, 1.0] {
+                let pivot = found.poses.upper.transform_point(&anchor);
+                let turn = Rotation3::from_axis_angle(
+                    &nalgebra::Unit::new_normalize(left),
+                    (sign * step as f64).to_radians(),
+                );
+                let tilt = Pose::new(turn, pivot - turn * pivot);
+                let tilted = ArchPoses {
+                    upper: tilt.compose(&found.poses.upper),
+                    lower: tilt.compose(&found.poses.lower),
+                };
+                let other = refine(&solver, engine, masks, tilted, &weights, &mut evaluations)?;
+                if total(&other, &weights) < total(&found, &weights) {
+                    found = other;
+                }
+            }
+        }
+        // Each arch's objective per mask pixel: the worse arch says how well the frame fits.
+        let misfit = found
+            .energies
+            .iter()
+            .map(|e| e.objective(&weights) / e.mask_pixels().max(1) as f64)
+            .fold(0.0, f64::max);
+        if best.as_ref().is_none_or(|b| misfit < b.misfit) {
+            best = Some(Located {
+                poses: found.poses,
+                energies: found.energies,
+                evaluations: 0,
+                misfit,
+            });
+        }
+    }
+    let mut best = best.expect("hypotheses");
+    best.evaluations = evaluations;
+    if best.misfit > MAX_MISFIT {
+        return Ok(Err(NotFound::Misfit(best.misfit)));
+    }
+    Ok(Ok(best))
+}
+
+/// Both arches' objectives.
+fn total(found: &JointFound, weights: &Weights) -> f64 {
+    found.energies.iter().map(|e| e.objective(weights)).sum()
+}
+
+/// The solver's stages from `start`, and again from where they ended while that still pays:
+/// a start this far off needs more than a tracked frame's few steps.
+fn refine(
+    solver: &JointFrame,
+    engine: &dyn EnergyEngine,
+    masks: &FrameMasks,
+    start: ArchPoses,
+    weights: &Weights,
+    evaluations: &mut usize,
+) -> Result<JointFound> {
+    let mut found = solver.solve(engine, masks, &[start])?;
+    *evaluations += found.evaluations;
+    for _ in 1..MAX_SOLVES {
+        let again = solver.solve(engine, masks, &[found.poses])?;
+        *evaluations += again.evaluations;
+        let gained = total(&again, weights) < total(&found, weights) * (1.0 - MIN_GAIN);
+        if total(&again, weights) <= total(&found, weights) {
+            found = again;
+        }
+        if !gained {
+            break;
+        }
+    }
+    Ok(found)
+}
