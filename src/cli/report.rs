@@ -128,7 +128,9 @@ fn meshes(c: &Capture) {
 /// How tracking starts (init.json) and how many frames of ground truth there are.
 fn init_and_truth(c: &Capture) {
     match &c.init() {
-        None => println!("init.json: absent (tracking will need first-frame poses)"),
+        None => println!(
+            "init.json: absent (tracking finds the first frame's poses from per-arch masks)"
+        ),
         Some(init) => {
             let kind = |a: &ArchInit| match a {
                 ArchInit::Pose(_) => "pose".to_string(),

@@ -174,10 +174,10 @@ fn world_frame(blobs: &[Blob]) -> Option<Frame> {
         .sum();
     let from_cameras = up.cross(&anterior).try_normalize(1e-6);
     let mut lefts = vec![from_band];
-    if let Some(l) = from_cameras {
-        if l.dot(&from_band).abs() < SAME_ROLL_DEG.to_radians().cos() {
-            lefts.push(l);
-        }
+    if let Some(l) = from_cameras
+        && l.dot(&from_band).abs() < SAME_ROLL_DEG.to_radians().cos()
+    {
+        lefts.push(l);
     }
     let axes = lefts
         .iter()
