@@ -382,3 +382,60 @@ pub fn name_of<T: clap::ValueEnum>(value: &T) -> String {
         .map(|p| p.get_name().to_string())
         .unwrap_or_default()
 }
+
+/// A three-parameter rig file of either kind (`rig learn`'s or `envelope learn`'s): the file
+/// says which.
+pub fn load_rig(
+    path: &Path,
+) -> anyhow::Result<Box<dyn jawtrack::rig::ThreeParameterRig + Send + Sync>> {
+    let head: serde_json::Value = jawtrack::io::read_json(path, "rig file")?;
+    Ok(
+        if head["format"].as_str() == Some(jawtrack::envelope::model::ENVELOPE_FORMAT) {
+            Box::new(jawtrack::envelope::EnvelopeRig::load(path)?)
+        } else {
+            Box::new(jawtrack::rig::JawRig::load(path)?)
+        },
+    )
+}
+
+/// Per parameter, how many values the rig's range is sampled at for tracking.
+const RIG_SAMPLES: [usize; 3] = [25, 9, 7];
+
+/// A rig's jaw poses over its valid range (a grid over the span of the poses it was learned
+/// from, the valid points kept): what `track --rig` holds the jaw to.
+pub fn rig_space(
+    rig: &(dyn jawtrack::rig::ThreeParameterRig + Send + Sync),
+    source: &str,
+) -> anyhow::Result<jawtrack::track::JawSpace> {
+    let spread = rig.spread();
+    let mut lo = [f64::INFINITY; 3];
+    let mut hi = [f64::NEG_INFINITY; 3];
+    for d in &spread {
+        for k in 0..3 {
+            lo[k] = lo[k].min(d[k]);
+            hi[k] = hi[k].max(d[k]);
+        }
+    }
+    let at = |k: usize, i: usize| {
+        let n = RIG_SAMPLES[k];
+        lo[k] + (hi[k] - lo[k]) * i as f64 / (n - 1) as f64
+    };
+    let mut poses = Vec::new();
+    for i in 0..RIG_SAMPLES[0] {
+        for j in 0..RIG_SAMPLES[1] {
+            for k in 0..RIG_SAMPLES[2] {
+                let d = [at(0, i), at(1, j), at(2, k)];
+                if rig.is_valid(&d) {
+                    poses.push(rig.pose(&d));
+                }
+            }
+        }
+    }
+    if poses.len() < 16 {
+        anyhow::bail!(
+            "{source}: only {} of the rig's sampled parameters are valid; too few to track with",
+            poses.len()
+        );
+    }
+    Ok(jawtrack::track::JawSpace::new(poses, source))
+}

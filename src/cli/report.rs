@@ -238,6 +238,18 @@ pub fn score(r: &ScoreReport) {
     }
     line("upper", "area error (%)", &r.area_error_percent[0]);
     line("lower", "area error (%)", &r.area_error_percent[1]);
+    let f = &r.flags;
+    println!(
+        "flags: {} of {} frames with the jaw off by more than {} mm are flagged (recall {:.0}%); \
+         {} of the {} others are (false flags {:.0}%)",
+        f.wrong_flagged,
+        f.wrong,
+        f.wrong_mm,
+        100.0 * f.recall,
+        f.right_flagged,
+        f.right,
+        100.0 * f.false_flag_rate
+    );
 }
 
 pub fn rig_eval(r: &EvalReport) {

@@ -1,11 +1,17 @@
-use std::path::PathBuf;
+use std::path::{Path, PathBuf};
+use std::sync::Arc;
 
 use anyhow::Context;
+use jawtrack::anatomy::MeshMetric;
 use jawtrack::capture::Capture;
 use jawtrack::energy::Region;
-use jawtrack::track::{SessionOptions, score_records};
+use jawtrack::formats::{FrameRecordJson, Status};
+use jawtrack::rig::{JawRig, RigSettings};
+use jawtrack::track::{SessionOptions, TrackSettings, score_records};
 
-use super::args::{EnergyArg, EngineArgs, LoadArgs, parse_frames, track_settings};
+use super::args::{
+    EnergyArg, EngineArgs, LoadArgs, load_rig, parse_frames, rig_space, track_settings,
+};
 
 /// What `track` and `segment` share: the capture, the output, the frames, the engine, the
 /// settings, and how a run that exists is continued or started over.
@@ -45,6 +51,11 @@ pub struct RunArgs {
     /// How the poses are found (`search.solver` of the settings; this wins).
     #[arg(long, value_enum)]
     pub search: Option<crate::cli::args::SearchArg>,
+    /// The subject's own rig (`rig learn`'s or `envelope learn`'s, learned from this capture's
+    /// tracks): the jaw is held to its manifold and ranges, and its poses are the jaw prior's
+    /// starts, in place of the average joint's.
+    #[arg(long)]
+    pub rig: Option<PathBuf>,
 }
 
 impl RunArgs {
@@ -61,7 +72,20 @@ impl RunArgs {
             overlays: self.overlays.clone(),
             resume: self.resume,
             force: self.force,
-            settings: track_settings(self.settings.as_deref(), self.energy, self.search)?,
+            settings: TrackSettings {
+                jaw_space: self
+                    .rig
+                    .as_deref()
+                    .map(|path| -> anyhow::Result<_> {
+                        let rig = load_rig(path)?;
+                        Ok(Arc::new(rig_space(
+                            rig.as_ref(),
+                            &path.display().to_string(),
+                        )?))
+                    })
+                    .transpose()?,
+                ..track_settings(self.settings.as_deref(), self.energy, self.search)?
+            },
             ..SessionOptions::new(&self.output)
         })
     }
@@ -71,13 +95,39 @@ impl RunArgs {
 pub struct Args {
     #[command(flatten)]
     pub run: RunArgs,
+    /// Track, learn the subject's rig from the frames tracked `ok` (`rig learn`'s defaults),
+    /// and track again held to it: OUTPUT's first pass and rig go beside it
+    /// (NAME.pass1.json, NAME.rig.json).
+    #[arg(long, conflicts_with = "rig")]
+    pub two_pass: bool,
 }
 
-pub fn run(Args { run: a }: Args) -> anyhow::Result<()> {
+pub fn run(Args { run: a, two_pass }: Args) -> anyhow::Result<()> {
     let capture = Capture::open_with(&a.capture, a.load.open_options())
         .with_context(|| format!("invalid capture {}", a.capture.display()))?;
     super::report::notes(&capture);
-    let options = a.session_options(&capture)?;
+    let mut options = a.session_options(&capture)?;
+    if two_pass {
+        let first = SessionOptions {
+            output: beside(&a.output, "pass1.json"),
+            ..options.clone()
+        };
+        let summary = super::run::track(&capture, first.clone())?;
+        println!("first pass:");
+        super::report::track_summary(&first.output, &summary);
+        if let Some(report) = score_records(&capture, &first.output, &summary.records)? {
+            super::report::score(&report);
+        }
+        let rig_path = beside(&a.output, "rig.json");
+        let rig = learn_rig(&capture, &first.output, &summary.records)?;
+        rig.save(&rig_path)?;
+        println!(
+            "learned the subject's rig -> {}\nsecond pass, held to it:",
+            rig_path.display()
+        );
+        options.settings.jaw_space =
+            Some(Arc::new(rig_space(&rig, &rig_path.display().to_string())?));
+    }
     let summary = super::run::track(&capture, options)?;
     super::report::track_summary(&a.output, &summary);
     if let Some(report) = score_records(&capture, &a.output, &summary.records)? {
@@ -85,4 +135,36 @@ pub fn run(Args { run: a }: Args) -> anyhow::Result<()> {
         super::report::score(&report);
     }
     Ok(())
+}
+
+/// `output` with its extension replaced by `suffix` (tracks.json -> tracks.pass1.json).
+fn beside(output: &Path, suffix: &str) -> PathBuf {
+    output.with_extension(suffix)
+}
+
+/// The rig of the frames tracked `ok`, learned as `rig learn` does by default.
+fn learn_rig(
+    capture: &Capture,
+    path: &Path,
+    records: &[FrameRecordJson],
+) -> anyhow::Result<JawRig> {
+    let mut jaws = Vec::new();
+    for r in records.iter().filter(|r| r.status() == Status::Ok) {
+        let field = format!("frames[{}]", r.frame);
+        let upper = r.upper.to_pose(path, &format!("{field}.upper"))?;
+        let lower = r.lower.to_pose(path, &format!("{field}.lower"))?;
+        jaws.push(upper.inverse().compose(&lower));
+    }
+    let metric = MeshMetric::new(capture.lower());
+    let rig = super::run::with_progress("learning the subject's rig", |progress| {
+        JawRig::learn(&jaws, &metric, &RigSettings::default(), progress)
+    })
+    .with_context(|| {
+        format!(
+            "learning a rig from the {} frames of {} tracked ok",
+            jaws.len(),
+            path.display()
+        )
+    })?;
+    Ok(rig.with_anatomy(capture.lower(), &jaws))
 }

@@ -6,8 +6,6 @@ use std::path::PathBuf;
 
 use anyhow::{Context, bail};
 use jawtrack::capture::Capture;
-use jawtrack::envelope::EnvelopeRig;
-use jawtrack::rig::{JawRig, ThreeParameterRig};
 use jawtrack::view::{Meshes, Tracked, Viewer, serve};
 
 use crate::cli::args::load_mesh;
@@ -40,14 +38,7 @@ pub struct Args {
 }
 
 pub fn run(a: Args) -> anyhow::Result<()> {
-    // The rig file says which rig it is.
-    let head: serde_json::Value = jawtrack::io::read_json(&a.rig, "rig file")?;
-    let rig: Box<dyn ThreeParameterRig + Send + Sync> =
-        if head["format"].as_str() == Some(jawtrack::envelope::model::ENVELOPE_FORMAT) {
-            Box::new(EnvelopeRig::load(&a.rig)?)
-        } else {
-            Box::new(JawRig::load(&a.rig)?)
-        };
+    let rig = crate::cli::args::load_rig(&a.rig)?;
     let mandible = a
         .mandible
         .as_deref()

@@ -27,5 +27,5 @@ pub mod state;
 pub use search::{ArchSearch, Found, SearchSettings, Solver, search};
 pub use sequence::{FrameResult, MaskSource, Status, track_frames};
 pub use session::{Session, SessionOptions, Summary, score_records};
-pub use settings::{LabelledSettings, TrackSettings};
+pub use settings::{JawSpace, LabelledSettings, TrackSettings};
 pub use state::TrackState;

@@ -44,6 +44,18 @@ impl JawPrior {
         }
     }
 
+    /// The prior of a subject's own jaw poses (`all`, spread over their range): all of them
+    /// as the fine grid, about `coarse` of them, evenly taken, as the coarse one.
+    pub fn of_poses(all: &[Pose], coarse: usize, nearest: usize, centre: Vector3<f64>) -> JawPrior {
+        let step = all.len().div_ceil(coarse.max(1)).max(1);
+        JawPrior {
+            coarse: all.iter().step_by(step).copied().collect(),
+            fine: all.to_vec(),
+            nearest,
+            centre,
+        }
+    }
+
     /// Jaw poses to try, given the jaw poses the frame starts from: the coarse grid, then the
     /// `nearest` poses of the fine one.
     pub fn candidates(&self, starts: &[Pose]) -> Vec<Pose> {

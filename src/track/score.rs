@@ -29,6 +29,59 @@ pub struct ScoreReport {
     pub area_error_percent: [Stats; 2],
     /// Per frame: mean vertex error (mm) of upper, lower and jaw.
     pub per_frame: Vec<(u32, [f64; 3])>,
+    /// How well the frames' flags (`low-confidence`, `no-data`) tell where the jaw is wrong.
+    pub flags: FlagScore,
+}
+
+/// The frames' flags against the jaw's true error: a flag should mean what it says.
+#[derive(Debug, Clone, serde::Serialize)]
+pub struct FlagScore {
+    /// A frame is wrong when its jaw's mean vertex error exceeds this (mm).
+    pub wrong_mm: f64,
+    pub wrong: usize,
+    /// Wrong frames that are flagged.
+    pub wrong_flagged: usize,
+    pub right: usize,
+    /// Right frames that are flagged anyway.
+    pub right_flagged: usize,
+    /// wrong_flagged / wrong (1 when no frame is wrong).
+    pub recall: f64,
+    /// right_flagged / right (0 when every frame is wrong).
+    pub false_flag_rate: f64,
+}
+
+/// A frame is wrong past this jaw error (mm): the bar for a flag.
+pub const WRONG_MM: f64 = 1.0;
+
+impl FlagScore {
+    /// From each frame's jaw error (mm) and whether it is flagged.
+    pub fn of(frames: &[(f64, bool)], wrong_mm: f64) -> FlagScore {
+        let count = |wrong: bool, flagged: bool| {
+            frames
+                .iter()
+                .filter(|(e, f)| (*e > wrong_mm) == wrong && (!flagged || *f))
+                .count()
+        };
+        let (wrong, wrong_flagged) = (count(true, false), count(true, true));
+        let (right, right_flagged) = (count(false, false), count(false, true));
+        FlagScore {
+            wrong_mm,
+            wrong,
+            wrong_flagged,
+            right,
+            right_flagged,
+            recall: if wrong == 0 {
+                1.0
+            } else {
+                wrong_flagged as f64 / wrong as f64
+            },
+            false_flag_rate: if right == 0 {
+                0.0
+            } else {
+                right_flagged as f64 / right as f64
+            },
+        }
+    }
 }
 
 /// Score `tracked` (poses per frame, with their records for status and area error) against
@@ -42,6 +95,7 @@ pub fn score(capture: &Capture, tracked: &[(FrameRecordJson, ArchPoses)]) -> Opt
     let mut errors: [[Vec<f64>; 3]; 3] = Default::default(); // [upper, lower, jaw][vertex, rot, trans]
     let mut area: [Vec<f64>; 2] = Default::default();
     let mut per_frame = Vec::new();
+    let mut flagged = Vec::new();
     let (mut ok, mut low, mut none) = (0, 0, 0);
     for (rec, poses) in tracked {
         let Some(gt) = capture.gt_poses(rec.frame) else {
@@ -67,6 +121,7 @@ pub fn score(capture: &Capture, tracked: &[(FrameRecordJson, ArchPoses)]) -> Opt
             frame_err[k] = v;
         }
         per_frame.push((rec.frame, frame_err));
+        flagged.push((frame_err[2], rec.status() != Status::Ok));
         if let Some(a) = &rec.area_error {
             for (k, arch) in Arch::BOTH.iter().enumerate() {
                 if let Some(x) = *a.get(*arch) {
@@ -90,12 +145,34 @@ pub fn score(capture: &Capture, tracked: &[(FrameRecordJson, ArchPoses)]) -> Opt
         jaw: pose_errors(&errors[2]),
         area_error_percent: [Stats::of(&area[0]), Stats::of(&area[1])],
         per_frame,
+        flags: FlagScore::of(&flagged, WRONG_MM),
     })
 }
 
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    #[test]
+    fn flags_are_scored_by_recall_and_false_flags() {
+        // Errors (mm) and flags: two wrong frames (one flagged), three right (one flagged).
+        let frames = [
+            (2.0, true),
+            (1.5, false),
+            (0.2, false),
+            (0.3, true),
+            (0.9, false),
+        ];
+        let f = FlagScore::of(&frames, 1.0);
+        assert_eq!(
+            (f.wrong, f.wrong_flagged, f.right, f.right_flagged),
+            (2, 1, 3, 1)
+        );
+        assert_eq!(f.recall, 0.5);
+        assert!((f.false_flag_rate - 1.0 / 3.0).abs() < 1e-12);
+        // Nothing wrong: every wrong frame (none) is flagged.
+        assert_eq!(FlagScore::of(&[(0.1, false)], 1.0).recall, 1.0);
+    }
 
     #[test]
     fn stats_use_nearest_rank() {

@@ -95,15 +95,23 @@ pub fn track_frames(
     // The prior serves both mask modes: with combined masks a lower-arch start could win by
     // covering the upper arch's pixels, which the contact penalty forbids (docs/tracking.md).
     // Which side of each arch the other is on comes from the poses tracking starts from.
-    let prior = JawPrior::new(
-        capture.upper(),
-        capture.lower(),
-        &state.start.jaw(),
-        settings.jaw_prior_grid,
-        settings.jaw_prior_fine_grid,
-        settings.jaw_prior_nearest,
-        centres[1],
-    );
+    let prior = match &settings.jaw_space {
+        Some(space) => JawPrior::of_poses(
+            &space.poses,
+            settings.jaw_prior_grid.iter().product(),
+            settings.jaw_prior_nearest,
+            centres[1],
+        ),
+        None => JawPrior::new(
+            capture.upper(),
+            capture.lower(),
+            &state.start.jaw(),
+            settings.jaw_prior_grid,
+            settings.jaw_prior_fine_grid,
+            settings.jaw_prior_nearest,
+            centres[1],
+        ),
+    };
     let contact = (settings.contact_weight > 0.0).then(|| {
         Contact::new(
             capture.upper(),
@@ -118,7 +126,11 @@ pub fn track_frames(
     let per_arch = matches!(capture.mask_mode(), MaskMode::PerArch { .. });
     let manifold =
         (per_arch && settings.jaw_manifold_weight > 0.0 && prior.fine.len() >= 4).then(|| {
-            JawManifold::new(
+            let new = match settings.jaw_space {
+                Some(_) => JawManifold::sampled,
+                None => JawManifold::new,
+            };
+            new(
                 &prior.fine,
                 capture.lower(),
                 settings.jaw_manifold_weight,

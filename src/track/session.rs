@@ -244,7 +244,7 @@ pub fn fingerprint(capture: &Capture, settings: &TrackSettings) -> String {
 }
 
 /// FNV-1a, 64 bits: stable across builds and platforms, unlike std's hasher.
-struct Fnv(u64);
+pub(super) struct Fnv(pub(super) u64);
 
 impl Default for Fnv {
     fn default() -> Self {
@@ -253,7 +253,7 @@ impl Default for Fnv {
 }
 
 impl Fnv {
-    fn write(&mut self, bytes: &[u8]) {
+    pub(super) fn write(&mut self, bytes: &[u8]) {
         for &b in bytes {
             self.0 = (self.0 ^ b as u64).wrapping_mul(0x0100_0000_01b3);
         }

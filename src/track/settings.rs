@@ -2,9 +2,13 @@
 //! around it (passes, confidence, the jaw prior, the penalties), each checked against its
 //! range (docs/settings.md).
 
+use std::sync::Arc;
+
 use super::search::SearchSettings;
+use super::session::Fnv;
 use crate::capture::Capture;
 use crate::error::Result;
+use crate::geometry::Pose;
 use crate::settings::Rules;
 
 #[derive(Debug, Clone, serde::Serialize, serde::Deserialize)]
@@ -63,6 +67,15 @@ pub struct TrackSettings {
     /// What replaces the fields above when the masks label the mouth (`masks.mouth`) and
     /// `search.mouth_weight` is above 0.
     pub labelled: LabelledSettings,
+    /// The subject's own jaw (`track --rig`): the jaw prior's candidates and the manifold the
+    /// jaw is held to, in place of the average joint's. Not a field of a settings file; the
+    /// output's fingerprint records its digest.
+    #[serde(
+        skip_deserializing,
+        skip_serializing_if = "Option::is_none",
+        serialize_with = "digest_of"
+    )]
+    pub jaw_space: Option<Arc<JawSpace>>,
 }
 
 /// The profile for masks that label the visible mouth interior: the energy is then two-sided
@@ -85,6 +98,41 @@ impl Default for LabelledSettings {
             sample_rounds: 1,
         }
     }
+}
+
+/// A subject's own jaw poses (upper_from_lower, in the capture's model frames): a rig's,
+/// sampled over its valid range.
+#[derive(Debug, Clone)]
+pub struct JawSpace {
+    pub poses: Vec<Pose>,
+    /// Where they come from and a digest of them.
+    pub digest: String,
+}
+
+impl JawSpace {
+    /// `source` names where the poses come from (a rig file).
+    pub fn new(poses: Vec<Pose>, source: &str) -> JawSpace {
+        let mut hash = Fnv::default();
+        for p in &poses {
+            for row in p.rotation_rows() {
+                for v in row {
+                    hash.write(&v.to_le_bytes());
+                }
+            }
+            for v in p.translation.iter() {
+                hash.write(&v.to_le_bytes());
+            }
+        }
+        let digest = format!("{source}: {} poses, {:016x}", poses.len(), hash.0);
+        JawSpace { poses, digest }
+    }
+}
+
+fn digest_of<S: serde::Serializer>(
+    space: &Option<Arc<JawSpace>>,
+    s: S,
+) -> std::result::Result<S::Ok, S::Error> {
+    s.serialize_str(space.as_ref().map_or("", |j| j.digest.as_str()))
 }
 
 const DEFAULT_RELOCATE: f64 = 0.1;
@@ -114,6 +162,7 @@ impl Default for TrackSettings {
             jaw_manifold_weight: 60.0,
             jaw_manifold_tolerance_mm: 0.3,
             labelled: LabelledSettings::default(),
+            jaw_space: None,
         }
     }
 }
