@@ -315,6 +315,7 @@ fn fill_error(misled: Option<u32>) -> (f64, Vec<u32>) {
                         Status::Ok
                     }),
                     jaw_source: None,
+                    tracked: None,
                 }
             })
             .collect(),

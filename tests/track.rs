@@ -433,38 +433,49 @@ fn a_run_killed_and_resumed_writes_the_same_bytes_as_one_never_interrupted() {
     let t = tempfile::tempdir().unwrap();
     let cap = capture48();
     let c = cap.to_str().unwrap();
-    let whole = t.path().join("whole.json");
-    track(cap, &whole, &["--frames", "0..7"]);
-    for k in [1, 4] {
-        let out = t.path().join(format!("killed{k}.json"));
-        let journal = t.path().join(format!("killed{k}.json.journal"));
-        let mut child = Command::new(env!("CARGO_BIN_EXE_jawtrack"))
-            .args(["track", c, "-o", out.to_str().unwrap(), "--frames", "0..7"])
-            .args(["--backend", "cpu"])
-            .stdout(std::process::Stdio::null())
-            .stderr(std::process::Stdio::null())
-            .spawn()
-            .unwrap();
-        // The journal's head line, then one line per frame.
-        let lines = || {
-            std::fs::read_to_string(&journal)
-                .map(|s| s.matches('\n').count())
-                .unwrap_or(0)
-        };
-        while lines() < k + 1 {
+    // The paper's search, and Gauss-Newton with the window over frames (which settles each
+    // frame six frames later: a kill leaves frames tracked but not yet settled).
+    for (name, extra) in [
+        ("paper", vec!["--frames", "0..7"]),
+        ("gn", vec!["--frames", "0..24", "--search", "gauss-newton"]),
+    ] {
+        let whole = t.path().join(format!("{name}-whole.json"));
+        track(cap, &whole, &extra);
+        for k in [1, 4] {
+            let out = t.path().join(format!("{name}-killed{k}.json"));
+            let journal = t.path().join(format!("{name}-killed{k}.json.journal"));
+            let mut child = Command::new(env!("CARGO_BIN_EXE_jawtrack"))
+                .args(["track", c, "-o", out.to_str().unwrap()])
+                .args(&extra)
+                .args(["--backend", "cpu"])
+                .stdout(std::process::Stdio::null())
+                .stderr(std::process::Stdio::null())
+                .spawn()
+                .unwrap();
+            // The journal's head line, then one line per frame.
+            let lines = || {
+                std::fs::read_to_string(&journal)
+                    .map(|s| s.matches('\n').count())
+                    .unwrap_or(0)
+            };
+            while lines() < k + 1 {
+                assert!(
+                    child.try_wait().unwrap().is_none(),
+                    "{name}: the run ended before it could be killed after {k} frames"
+                );
+                std::thread::sleep(std::time::Duration::from_millis(2));
+            }
+            child.kill().unwrap(); // SIGKILL on Unix
+            child.wait().unwrap();
+            let mut resume = extra.clone();
+            resume.push("--resume");
+            track(cap, &out, &resume);
             assert!(
-                child.try_wait().unwrap().is_none(),
-                "the run ended before it could be killed after {k} frames"
+                std::fs::read(&whole).unwrap() == std::fs::read(&out).unwrap(),
+                "{name}: killed after {k} frames and resumed, tracks.json differs from an \
+                 uninterrupted run's"
             );
-            std::thread::sleep(std::time::Duration::from_millis(5));
         }
-        child.kill().unwrap(); // SIGKILL on Unix
-        child.wait().unwrap();
-        track(cap, &out, &["--frames", "0..7", "--resume"]);
-        assert!(
-            std::fs::read(&whole).unwrap() == std::fs::read(&out).unwrap(),
-            "killed after {k} frames and resumed, tracks.json differs from an uninterrupted run's"
-        );
     }
 }
 

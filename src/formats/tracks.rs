@@ -48,6 +48,20 @@ pub struct FrameRecordJson {
     /// jawtrack's addition, written by `skin fill`: where the frame's jaw pose came from.
     #[serde(default, skip_serializing_if = "Option::is_none")]
     pub jaw_source: Option<JawSource>,
+    /// jawtrack's addition: the frame as tracked, before the window over frames settled it
+    /// (`upper` and `lower` above), where a window applies.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub tracked: Option<TrackedJson>,
+}
+
+/// A frame as tracked: its poses, and the information its masks gave about them (the 12x12
+/// normal matrix in the increments of both arches and the jaw, row by row).
+#[derive(Debug, Clone, Serialize, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct TrackedJson {
+    pub upper: PoseJson,
+    pub lower: PoseJson,
+    pub information: Vec<f64>,
 }
 
 /// A value per arch, as the record writes it (`lower` first: the keys' order).

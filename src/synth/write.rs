@@ -194,6 +194,7 @@ fn write_ground_truth(dir: &Path, frames: &[FilmedFrame]) -> Result<()> {
             area_error: None,
             status: None,
             jaw_source: None,
+            tracked: None,
         })
         .collect();
     write_json_atomic(

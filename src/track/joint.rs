@@ -44,7 +44,7 @@ use crate::energy::target::{CLASS_BODY, CLASS_BOI, Target};
 use crate::geometry::{Camera, Pose, hat};
 use crate::mesh::Mesh;
 
-type Matrix12 = SMatrix<f64, 12, 12>;
+pub type Matrix12 = SMatrix<f64, 12, 12>;
 type Vector12 = SVector<f64, 12>;
 
 /// A pixel-position read of a mask or of a cost.
@@ -87,6 +87,10 @@ pub struct JointAligned {
     pub steps: usize,
     /// Samples that found an edge in the last step (upper, lower).
     pub samples: [usize; 2],
+    /// The last step's information from the masks alone (its normal matrix before the
+    /// motion prior, hinges and damping), in the increments [ξ_u; ξ_j]: how sharply the
+    /// frame's edges hold each direction, for a window over frames to weigh it by.
+    pub information: Matrix12,
 }
 
 /// What a sample is an edge of.
@@ -284,6 +288,7 @@ pub fn align_both(
     let mut poses = start;
     let mut steps = 0;
     let mut found = [0; 2];
+    let mut information = Matrix12::zeros();
     for &reach in &s.reaches_px {
         let at = poses;
         let frozen = samples(arches, &at, views, apart, s.spacing_px);
@@ -335,6 +340,7 @@ pub fn align_both(
                 g += w * d * row;
                 found[c.arch] += 1;
             }
+            information = h;
             // The motion prior: each arch's displacement from where the frame started, at
             // its centre and at an arch's radius.
             if s.motion_prior > 0.0 {
@@ -404,6 +410,7 @@ pub fn align_both(
         poses,
         steps,
         samples: found,
+        information,
     }
 }
 

@@ -3,7 +3,7 @@
 //! (the tracker's penalties as hinges), and which of result and start stands, by the energy.
 
 use super::align::FrameReads;
-use super::joint::{JawHinge, JointView, align_both};
+use super::joint::{JawHinge, JointView, Matrix12, align_both};
 use super::penalties::Penalties;
 use super::prior::JawPrior;
 use super::search::SearchSettings;
@@ -32,6 +32,8 @@ pub struct JointFound {
     pub evaluations: usize,
     /// Gauss-Newton steps taken.
     pub steps: usize,
+    /// The masks' information about the solver's result ([`super::joint::JointAligned`]).
+    pub information: Matrix12,
 }
 
 impl JointFrame<'_> {
@@ -146,7 +148,7 @@ impl JointFrame<'_> {
             weights.lambda,
             gn,
         );
-        let (found, steps) = (found.poses, found.steps);
+        let (found, steps, information) = (found.poses, found.steps, found.information);
         // The result, each arch's result with the other's start, and the start: where the
         // steps made an arch worse (too few samples to hold it, an edge that is another's),
         // its start stands.
@@ -167,6 +169,7 @@ impl JointFrame<'_> {
             energies,
             evaluations,
             steps,
+            information,
         })
     }
 }

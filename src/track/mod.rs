@@ -4,7 +4,8 @@
 //! where it stands between frames (`state`), the jaw prior's starts (`prior`), what anatomy
 //! adds to the objective (`penalties`: the arches' non-penetration, `contact`, and the jaw's
 //! manifold, `manifold`), tracks.json as it is written (`output`), scoring against ground
-//! truth (`score`) and overlays (`overlay`).
+//! truth (`score`) and overlays (`overlay`); the window over frames that settles each frame
+//! with its neighbours (`window`).
 
 pub mod align;
 pub mod contact;
@@ -23,6 +24,7 @@ pub mod sequence;
 pub mod session;
 pub mod settings;
 pub mod state;
+pub mod window;
 
 pub use search::{ArchSearch, Found, SearchSettings, Solver, search};
 pub use sequence::{FrameResult, MaskSource, Status, track_frames};

@@ -3,15 +3,23 @@
 //! atomically at most once a second and at the end. An interrupted run loses at most the frame
 //! in progress; `--resume` reads the journal (or tracks.json) back and continues after the last
 //! complete frame. Writes stay linear in the sequence length.
+//!
+//! The journal holds each frame as tracked (its poses and the masks' information about
+//! them); tracks.json holds them settled by the window over frames ([`super::window`]), each
+//! frame once the window's frames after it are in, the last ones at the end, with the tracked
+//! poses beside them. A resumed run reads the frames as tracked back and settles them again.
 
 use std::io::Write;
 use std::path::{Path, PathBuf};
 use std::time::{Duration, Instant};
 
+use super::joint::Matrix12;
 use super::sequence::FrameResult;
+use super::window::{Estimate, WindowSettings, settled};
+use crate::arch::ArchPoses;
 use crate::error::{Error, Result};
 use crate::formats::{
-    ArchEnergyJson, FrameRecordJson, PerArchJson, PoseJson, TRACKS_FORMAT, TracksJson,
+    ArchEnergyJson, FrameRecordJson, PerArchJson, PoseJson, TRACKS_FORMAT, TrackedJson, TracksJson,
 };
 use crate::io::{check_replaceable, write_json_atomic};
 
@@ -21,7 +29,13 @@ pub struct TracksWriter {
     path: PathBuf,
     journal_path: PathBuf,
     journal: std::fs::File,
+    /// Every frame as tracked, as the journal has it.
     records: Vec<FrameRecordJson>,
+    /// The same, as a reader of the journal gets them back.
+    estimates: Vec<Estimate>,
+    /// The frames the window has settled.
+    settled: Vec<ArchPoses>,
+    window: WindowSettings,
     fingerprint: String,
     last_rewrite: Instant,
 }
@@ -57,7 +71,31 @@ pub fn record(r: &FrameResult) -> FrameRecordJson {
         }),
         status: Some(r.status),
         jaw_source: None,
+        tracked: r.information.map(|info| TrackedJson {
+            upper: PoseJson::from(&r.poses.upper),
+            lower: PoseJson::from(&r.poses.lower),
+            information: info.transpose().iter().copied().collect(),
+        }),
     }
+}
+
+/// A record as tracked (tracks.json's settled poses replaced by the tracked ones beside them)
+/// and the estimate it holds.
+fn as_tracked(path: &Path, mut rec: FrameRecordJson) -> Result<(FrameRecordJson, Estimate)> {
+    let mut information = None;
+    if let Some(t) = &rec.tracked {
+        let field = format!("frame {}.tracked.information", rec.frame);
+        if t.information.len() != 144 || t.information.iter().any(|v| !v.is_finite()) {
+            return Err(Error::invalid(path, field, "not 144 finite numbers"));
+        }
+        information = Some(Matrix12::from_row_slice(&t.information));
+        rec.upper = t.upper.clone();
+        rec.lower = t.lower.clone();
+        rec.jaw = None;
+    }
+    let poses = rec.poses(path)?;
+    rec.jaw = Some(PoseJson::from(&poses.jaw()));
+    Ok((rec, Estimate { poses, information }))
 }
 
 impl TracksWriter {
@@ -81,6 +119,7 @@ impl TracksWriter {
         force: bool,
         frames: std::ops::Range<u32>,
         fingerprint: &str,
+        window: &WindowSettings,
     ) -> Result<(TracksWriter, Vec<FrameRecordJson>)> {
         let journal_path = Self::journal_path(path);
         // Before anything is read or written: neither may replace a device, pipe or link.
@@ -107,6 +146,20 @@ impl TracksWriter {
                 "already exists; pass --resume to continue it or --force to start over",
             ));
         }
+        let mut estimates = Vec::new();
+        let from = if journal_path.exists() {
+            &journal_path
+        } else {
+            path
+        };
+        let records: Vec<FrameRecordJson> = records
+            .into_iter()
+            .map(|r| {
+                let (r, e) = as_tracked(from, r)?;
+                estimates.push(e);
+                Ok(r)
+            })
+            .collect::<Result<_>>()?;
         let werr = |error| Error::Write {
             path: journal_path.clone(),
             error,
@@ -129,37 +182,67 @@ impl TracksWriter {
             writeln!(journal, "{}", serde_json::to_string(r).expect("plain data")).map_err(werr)?;
         }
         journal.sync_data().map_err(werr)?;
-        Ok((
-            TracksWriter {
-                path: path.to_path_buf(),
-                journal_path,
-                journal,
-                records: records.clone(),
-                fingerprint: fingerprint.to_string(),
-                last_rewrite: Instant::now(),
-            },
-            records,
-        ))
+        let mut writer = TracksWriter {
+            path: path.to_path_buf(),
+            journal_path,
+            journal,
+            records: records.clone(),
+            estimates,
+            settled: Vec::new(),
+            window: window.clone(),
+            fingerprint: fingerprint.to_string(),
+            last_rewrite: Instant::now(),
+        };
+        writer.settle(false);
+        Ok((writer, records))
     }
 
     pub fn push(&mut self, r: &FrameResult) -> Result<()> {
-        let rec = record(r);
+        let line = serde_json::to_string(&record(r)).expect("plain data");
         let werr = |error| Error::Write {
             path: self.journal_path.clone(),
             error,
         };
-        writeln!(
-            self.journal,
-            "{}",
-            serde_json::to_string(&rec).expect("plain data")
-        )
-        .map_err(werr)?;
+        writeln!(self.journal, "{line}").map_err(werr)?;
         self.journal.sync_data().map_err(werr)?;
+        // The estimate as a resumed run reads it back from the journal: the same bits.
+        let rec: FrameRecordJson = serde_json::from_str(&line).expect("just written");
+        let (rec, estimate) = as_tracked(&self.journal_path, rec)?;
         self.records.push(rec);
+        self.estimates.push(estimate);
+        self.settle(false);
         if self.last_rewrite.elapsed() >= REWRITE_EVERY {
             self.rewrite()?;
         }
         Ok(())
+    }
+
+    /// Settle every frame whose window is complete, or, at the `end`, every frame.
+    fn settle(&mut self, end: bool) {
+        let n = self.estimates.len();
+        let complete = if end {
+            n
+        } else {
+            n.saturating_sub(self.window.frames)
+        };
+        while self.settled.len() < complete {
+            let t = self.settled.len();
+            self.settled.push(settled(&self.estimates, t, &self.window));
+        }
+    }
+
+    /// The records as tracks.json has them: settled poses where the window has settled them,
+    /// the tracked ones beside them.
+    fn output(&self) -> Vec<FrameRecordJson> {
+        let mut out = self.records.clone();
+        for (rec, poses) in out.iter_mut().zip(&self.settled) {
+            if rec.tracked.is_some() {
+                rec.upper = PoseJson::from(&poses.upper);
+                rec.lower = PoseJson::from(&poses.lower);
+                rec.jaw = Some(PoseJson::from(&poses.jaw()));
+            }
+        }
+        out
     }
 
     fn rewrite(&mut self) -> Result<()> {
@@ -169,19 +252,20 @@ impl TracksWriter {
             &TracksJson {
                 format: TRACKS_FORMAT.to_string(),
                 fingerprint: Some(self.fingerprint.clone()),
-                frames: self.records.clone(),
+                frames: self.output(),
             },
         )
     }
 
-    /// Write tracks.json a last time and drop the journal.
+    /// Settle the last frames, write tracks.json a last time and drop the journal.
     pub fn finish(mut self) -> Result<Vec<FrameRecordJson>> {
+        self.settle(true);
         self.rewrite()?;
         std::fs::remove_file(&self.journal_path).map_err(|error| Error::Write {
             path: self.journal_path.clone(),
             error,
         })?;
-        Ok(self.records)
+        Ok(self.output())
     }
 }
 
@@ -295,7 +379,8 @@ mod tests {
         let t = tempfile::tempdir().unwrap();
         let out = t.path().join("tracks.json");
         std::fs::write(t.path().join("tracks.json.journal"), text).unwrap();
-        TracksWriter::open(&out, true, false, 0..12, run).map(|(_, records)| records)
+        TracksWriter::open(&out, true, false, 0..12, run, &WindowSettings::default())
+            .map(|(_, records)| records)
     }
 
     fn resume(text: &str) -> Result<Vec<FrameRecordJson>> {

@@ -10,6 +10,7 @@ use nalgebra::Vector3;
 
 use super::align::{ArchAlign, align_arch};
 use super::contact::{Contact, ContactSettings};
+use super::joint::Matrix12;
 use super::joint_frame::JointFrame;
 use super::locate::relocate;
 use super::manifold::JawManifold;
@@ -38,6 +39,10 @@ pub struct FrameResult {
     /// Gauss-Newton steps (each a Jacobian of every silhouette sample; 0 for the paper's
     /// search).
     pub steps: usize,
+    /// How sharply the masks hold the poses (Gauss-Newton's information about them, in
+    /// [ξ_u; ξ_j]): what the window over frames weighs the frame by. `None` for frames the
+    /// paper's search or a fresh look found.
+    pub information: Option<Matrix12>,
     pub seconds: f64,
 }
 
@@ -299,6 +304,7 @@ fn track_frame(
             status: Status::NoData,
             evaluations: 0,
             steps: 0,
+            information: None,
             seconds: 0.0,
         });
     }
@@ -333,11 +339,15 @@ fn track_frame(
             ..settings.clone()
         };
         if confidence(&strict, state, worst) == Status::Ok {
-            let (poses, energies) = (found.poses, found.energies);
-            let (poses, energies) =
-                relocated(run, engine, masks, (poses, energies), &mut evaluations)?;
+            let tracked = (found.poses, found.energies);
+            let (poses, energies) = relocated(run, engine, masks, tracked, &mut evaluations)?;
+            let information = (poses == found.poses).then_some(found.information);
             let result = finish(settings, state, frame, poses, energies, evaluations);
-            return Ok(FrameResult { steps, ..result });
+            return Ok(FrameResult {
+                steps,
+                information,
+                ..result
+            });
         }
     }
     let mut poses = state.last;
@@ -458,6 +468,7 @@ fn finish(
         status,
         evaluations,
         steps: 0,
+        information: None,
         seconds: 0.0,
     }
 }

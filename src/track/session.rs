@@ -110,6 +110,7 @@ impl<'c> Session<'c> {
             options.force,
             all.clone(),
             &fingerprint(capture, &options.settings),
+            &options.settings.window,
         )?;
         let next = done
             .last()

@@ -6,6 +6,7 @@ use std::sync::Arc;
 
 use super::search::SearchSettings;
 use super::session::Fnv;
+use super::window::WindowSettings;
 use crate::capture::Capture;
 use crate::error::Result;
 use crate::geometry::Pose;
@@ -67,6 +68,10 @@ pub struct TrackSettings {
     /// What replaces the fields above when the masks label the mouth (`masks.mouth`) and
     /// `search.mouth_weight` is above 0.
     pub labelled: LabelledSettings,
+    /// The window over frames (a fixed-lag smoother of the frames Gauss-Newton tracked).
+    /// Left out of the output's fingerprint at its defaults.
+    #[serde(skip_serializing_if = "WindowSettings::is_default")]
+    pub window: WindowSettings,
     /// The subject's own jaw (`track --rig`): the jaw prior's candidates and the manifold the
     /// jaw is held to, in place of the average joint's. Not a field of a settings file; the
     /// output's fingerprint records its digest.
@@ -162,6 +167,7 @@ impl Default for TrackSettings {
             jaw_manifold_weight: 60.0,
             jaw_manifold_tolerance_mm: 0.3,
             labelled: LabelledSettings::default(),
+            window: WindowSettings::default(),
             jaw_space: None,
         }
     }
@@ -177,6 +183,7 @@ impl TrackSettings {
     pub fn validate_from(&self, source: &std::path::Path) -> Result<()> {
         let rules = Rules::new(source);
         self.search.validate(&rules.within("search"))?;
+        self.window.validate(&rules.within("window"))?;
         // A search's seed packs the pass in 4 bits and the restart in 7 (see `track_frame`).
         rules.count("per_arch_passes", self.per_arch_passes as u64, 1, 16)?;
         rules.count("combined_passes", self.combined_passes as u64, 1, 16)?;
