@@ -404,7 +404,7 @@ proptest! {
         let out = t.path().join("tracks.json");
         let name = if journal { "tracks.json.journal" } else { "tracks.json" };
         std::fs::write(t.path().join(name), apply(&corpus(name), &e)).unwrap();
-        let _ = jawtrack::track::output::TracksWriter::open(&out, true, false, 0..3, "f");
+        let _ = jawtrack::track::output::TracksWriter::open(&out, true, false, 0..3, "f", &Default::default());
     }
 
     #[test]
@@ -513,8 +513,15 @@ fn every_seed_of_the_corpus_reads() {
         let t = tempfile::tempdir().unwrap();
         std::fs::write(t.path().join(name), corpus(name)).unwrap();
         let out = t.path().join("tracks.json");
-        let (_, records) =
-            jawtrack::track::output::TracksWriter::open(&out, true, false, 0..3, "f").unwrap();
+        let (_, records) = jawtrack::track::output::TracksWriter::open(
+            &out,
+            true,
+            false,
+            0..3,
+            "f",
+            &Default::default(),
+        )
+        .unwrap();
         assert_eq!(records.len(), 3, "{name}");
     }
 }

@@ -200,7 +200,10 @@ fn gauss_newton_holds_realistic_frames_and_falls_back_when_lost() {
         serde_json::from_str(&std::fs::read_to_string(&init).unwrap()).unwrap();
     shift_init(&mut v, 12.0);
     std::fs::write(&init, v.to_string()).unwrap();
-    let text = String::from_utf8_lossy(&run(&[]).stdout).to_string();
+    // Its area error (0.105) is under the default bound for a fresh look (0.2): lowered here.
+    let text =
+        String::from_utf8_lossy(&run(&["--settings", r#"{"relocate_area_error": 0.1}"#]).stdout)
+            .to_string();
     let per_frame: f64 = text
         .split(" energy evaluations per frame")
         .next()

@@ -89,8 +89,8 @@ fn as_tracked(path: &Path, mut rec: FrameRecordJson) -> Result<(FrameRecordJson,
             return Err(Error::invalid(path, field, "not 144 finite numbers"));
         }
         information = Some(Matrix12::from_row_slice(&t.information));
-        rec.upper = t.upper.clone();
-        rec.lower = t.lower.clone();
+        rec.upper = t.upper;
+        rec.lower = t.lower;
         rec.jaw = None;
     }
     let poses = rec.poses(path)?;

@@ -27,7 +27,9 @@ pub struct TrackSettings {
     /// times the median area error of the last `confidence_window` good frames (a sudden
     /// jump; the floor keeps clean data, whose area error is near zero, from tripping it).
     pub low_confidence_area_error: f64,
-    /// A frame whose worse arch's area error exceeds this after its search is taken as lost:
+    /// A frame whose worse arch's area error exceeds this after its search is taken as lost
+    /// (at 0.1, frames of hard captures where the lips close trip it, and the fresh look finds
+    /// poses the energy prefers that are further from the truth):
     /// both arches are looked for afresh from its masks alone (`locate`, as for a capture
     /// without init.json) and kept where they fit better. 1 turns it off. (Left out of the
     /// output's fingerprint at its default, so runs from before it resume.)
@@ -140,7 +142,7 @@ fn digest_of<S: serde::Serializer>(
     s.serialize_str(space.as_ref().map_or("", |j| j.digest.as_str()))
 }
 
-const DEFAULT_RELOCATE: f64 = 0.1;
+const DEFAULT_RELOCATE: f64 = 0.2;
 
 fn is_default_relocate(v: &f64) -> bool {
     *v == DEFAULT_RELOCATE
