@@ -254,6 +254,22 @@ fn without_init_json_the_arches_are_found_from_the_masks() {
             cap.display()
         );
     }
+    // A chunk later in a take, where init.json's first-frame poses do not hold: `--locate`.
+    let chunk = t.path().join("chunk");
+    copy_dir(
+        common::template(Preset::Realistic, MaskKind::PerArch),
+        &chunk,
+    );
+    let out = t.path().join("chunk.json");
+    track(
+        &chunk,
+        &out,
+        &["--frames", "3..5", "--search", "gauss-newton", "--locate"],
+    );
+    let s = score(&chunk, &out);
+    assert_eq!(s["per_frame"][0][0], 3, "{s}");
+    let jaw = s["per_frame"][0][1][2].as_f64().unwrap();
+    assert!(jaw < 0.6, "frame 3 found from its masks: jaw {jaw} mm");
 }
 
 /// A first frame whose masks show no teeth cannot place the arches: the error says which

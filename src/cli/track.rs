@@ -51,6 +51,10 @@ pub struct RunArgs {
     /// How the poses are found (`search.solver` of the settings; this wins).
     #[arg(long, value_enum)]
     pub search: Option<crate::cli::args::SearchArg>,
+    /// Find the first frame's poses from its masks (per-arch masks), even where init.json
+    /// gives them: for a run that starts later in a take (`--frames A..B`).
+    #[arg(long)]
+    pub locate: bool,
     /// The subject's own rig (`rig learn`'s or `envelope learn`'s, learned from this capture's
     /// tracks): the jaw is held to its manifold and ranges, and its poses are the jaw prior's
     /// starts, in place of the average joint's.
@@ -72,6 +76,7 @@ impl RunArgs {
             overlays: self.overlays.clone(),
             resume: self.resume,
             force: self.force,
+            locate: self.locate,
             settings: TrackSettings {
                 jaw_space: self
                     .rig

@@ -37,6 +37,9 @@ pub struct SessionOptions {
     pub resume: bool,
     /// Start over when the output exists.
     pub force: bool,
+    /// Find the first frame's poses from its masks even where init.json gives them: for a run
+    /// that starts later in a take (`frames`), where init.json's first-frame poses do not hold.
+    pub locate: bool,
     pub settings: TrackSettings,
 }
 
@@ -51,6 +54,7 @@ impl SessionOptions {
             overlays: None,
             resume: false,
             force: false,
+            locate: false,
             settings: TrackSettings::default(),
         }
     }
@@ -109,7 +113,7 @@ impl<'c> Session<'c> {
             options.resume,
             options.force,
             all.clone(),
-            &fingerprint(capture, &options.settings),
+            &fingerprint(capture, &options.settings, options.locate),
             &options.settings.window,
         )?;
         let next = done
@@ -125,10 +129,11 @@ impl<'c> Session<'c> {
         )?;
         let mut engine = opened.engine;
         let start = match capture.init() {
-            Some(_) => capture.initial_poses()?,
-            // Without init.json the arches are found in the run's first frame (a resumed run
-            // finds the same poses again: the search depends on that frame's masks alone).
-            None => {
+            Some(_) if !options.locate => capture.initial_poses()?,
+            // Without init.json (or asked to) the arches are found in the run's first frame (a
+            // resumed run finds the same poses again: the search depends on that frame's masks
+            // alone).
+            _ => {
                 let masks = capture.load_masks(range.start)?;
                 engine.set_frame(&masks)?;
                 locate(
@@ -219,8 +224,13 @@ impl<'c> Session<'c> {
 /// frames, meshes after simplification, mask mode and reduction, the start) and the settings.
 /// A resumed run must have the same; the engine is left out, since every engine computes the
 /// same energy.
-pub fn fingerprint(capture: &Capture, settings: &TrackSettings) -> String {
+pub fn fingerprint(capture: &Capture, settings: &TrackSettings, locate: bool) -> String {
     let mut hash = Fnv::default();
+    if locate {
+        // The start found from the masks, not init.json's (left out otherwise, so that runs
+        // from before the option resume).
+        hash.write(b"locate");
+    }
     for cam in capture.cameras() {
         hash.write(format!("{:?} {:?}", cam.calibrated, cam.mask_size).as_bytes());
     }
