@@ -147,6 +147,31 @@ impl<'a> FrameReads<'a> {
         move |x: Vector2<f64>| lambda + extra(x)
     }
 
+    /// [`align`] `arch`'s mesh to these masks (its mask in every camera, and what a model
+    /// drawn past its edge costs there).
+    pub fn align(
+        &self,
+        arch: Arch,
+        weights: &Weights,
+        mesh: (&Mesh, &ContourEdges),
+        start: Pose,
+        occluders: &[(&Mesh, &Pose)],
+        s: &AlignSettings,
+    ) -> Aligned {
+        let on: Vec<_> = (0..self.len()).map(|k| self.on(k, arch)).collect();
+        let beyond: Vec<_> = (0..self.len())
+            .map(|k| self.beyond(k, arch, weights))
+            .collect();
+        let views: Vec<MaskView> = (0..self.len())
+            .map(|k| MaskView {
+                camera: self.camera(k),
+                mask: &on[k],
+                beyond: Some(&beyond[k]),
+            })
+            .collect();
+        align(mesh, start, &views, occluders, s)
+    }
+
     /// What any pixel of `arch`'s model costs at a pixel of camera `k` besides the paper's
     /// terms: the cross-label weight over the other arch's label, the over-mouth weight over
     /// the mouth interior's.
@@ -271,22 +296,12 @@ pub fn align_arch(engine: &dyn EnergyEngine, q: &ArchAlign) -> Result<Found> {
         Arch::Lower => (capture.lower(), capture.upper()),
     };
     let reads = FrameReads::new(capture, q.masks);
-    let on: Vec<_> = (0..reads.len()).map(|k| reads.on(k, q.arch)).collect();
-    let beyond: Vec<_> = (0..reads.len())
-        .map(|k| reads.beyond(k, q.arch, &q.weights))
-        .collect();
-    let views: Vec<MaskView> = (0..reads.len())
-        .map(|k| MaskView {
-            camera: reads.camera(k),
-            mask: &on[k],
-            beyond: Some(&beyond[k]),
-        })
-        .collect();
     let other_pose = *q.from.get(q.arch.other());
-    let found = align(
+    let found = reads.align(
+        q.arch,
+        &q.weights,
         (mesh, q.edges),
         *q.from.get(q.arch),
-        &views,
         &[(other, &other_pose)],
         &AlignSettings::default(),
     );

@@ -4,8 +4,8 @@
 //! cannot tell the poses apart).
 
 use super::penalties::Penalties;
+use super::prior::centre;
 use super::search::{ArchSearch, SearchSettings, search};
-use super::sequence::centre;
 use crate::anatomy::MeshMetric;
 use crate::arch::{Arch, ArchPoses};
 use crate::capture::Capture;

@@ -21,10 +21,10 @@ use nalgebra::{Matrix2, Rotation3, SymmetricEigen, Vector2, Vector3};
 
 use rayon::prelude::*;
 
-use super::align::{AlignSettings, FrameReads, MaskView, align};
+use super::align::{AlignSettings, FrameReads};
 use super::joint_frame::{JointFound, JointFrame};
 use super::penalties::Penalties;
-use super::prior::JawPrior;
+use super::prior::{JawPrior, centre};
 use super::settings::TrackSettings;
 use crate::anatomy::scan_frame::scan_frame;
 use crate::arch::{Arch, ArchPoses};
@@ -376,18 +376,10 @@ fn find(
                     None => break,
                 }
             }
-            let on: Vec<_> = (0..reads.len()).map(|k| reads.on(k, Arch::Upper)).collect();
-            let beyond: Vec<_> = (0..reads.len())
-                .map(|k| reads.beyond(k, Arch::Upper, &weights))
-                .collect();
-            let views: Vec<MaskView> = (0..reads.len())
-                .map(|k| MaskView {
-                    camera: reads.camera(k),
-                    mask: &on[k],
-                    beyond: Some(&beyond[k]),
-                })
-                .collect();
-            align((upper, &upper_edges), pose, &views, &[], &align_settings).pose
+            let (arch, edges) = (Arch::Upper, (upper, &upper_edges));
+            reads
+                .align(arch, &weights, edges, pose, &[], &align_settings)
+                .pose
         })
         .collect();
     // The lower arch far behind the subject while the upper arch is ranked: it hides nothing.
@@ -421,7 +413,7 @@ fn find(
                     settings.jaw_prior_grid,
                     settings.jaw_prior_fine_grid,
                     settings.jaw_prior_nearest,
-                    super::sequence::centre(capture, Arch::Lower),
+                    centre(capture, Arch::Lower),
                 );
                 let options: Vec<ArchPoses> = prior
                     .coarse

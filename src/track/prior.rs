@@ -10,8 +10,20 @@ use nalgebra::Vector3;
 
 use super::search::RADIUS_MM;
 use crate::anatomy::joint_grid;
+use crate::arch::Arch;
+use crate::capture::Capture;
 use crate::geometry::Pose;
 use crate::mesh::Mesh;
+
+/// The centre of an arch in its model frame (rotations of the search turn about it).
+pub fn centre(capture: &Capture, arch: Arch) -> Vector3<f64> {
+    let (lo, hi) = capture.mesh(arch).bounds();
+    Vector3::new(
+        (lo[0] + hi[0]) as f64,
+        (lo[1] + hi[1]) as f64,
+        (lo[2] + hi[2]) as f64,
+    ) * 0.5
+}
 
 /// The jaw prior's candidates (jaw poses, upper_from_lower, in the capture's model frames).
 #[derive(Debug, Clone)]

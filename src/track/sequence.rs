@@ -15,7 +15,7 @@ use super::joint_frame::JointFrame;
 use super::locate::relocate;
 use super::manifold::JawManifold;
 use super::penalties::Penalties;
-use super::prior::JawPrior;
+use super::prior::{JawPrior, centre};
 use super::search::{ArchSearch, Found, RADIUS_MM, Solver, search};
 use super::settings::TrackSettings;
 use super::state::{TrackState, as_written};
@@ -44,16 +44,6 @@ pub struct FrameResult {
     /// paper's search or a fresh look found.
     pub information: Option<Matrix12>,
     pub seconds: f64,
-}
-
-/// The centre of an arch in its model frame (rotations of the search turn about it).
-pub fn centre(capture: &Capture, arch: Arch) -> Vector3<f64> {
-    let (lo, hi) = capture.mesh(arch).bounds();
-    Vector3::new(
-        (lo[0] + hi[0]) as f64,
-        (lo[1] + hi[1]) as f64,
-        (lo[2] + hi[2]) as f64,
-    ) * 0.5
 }
 
 /// Constant-velocity prediction: the last motion applied once more.

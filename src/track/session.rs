@@ -19,6 +19,7 @@ use crate::capture::Capture;
 use crate::energy::{Backend, EnergyEngine, Region, Scene, open_engine};
 use crate::error::{Error, Result};
 use crate::formats::FrameRecordJson;
+use crate::io::Fnv;
 
 /// What a run is asked to do.
 #[derive(Debug, Clone)]
@@ -252,23 +253,6 @@ pub fn fingerprint(capture: &Capture, settings: &TrackSettings, locate: bool) ->
     }
     hash.write(&serde_json::to_vec(settings).expect("plain data"));
     format!("{:016x}", hash.0)
-}
-
-/// FNV-1a, 64 bits: stable across builds and platforms, unlike std's hasher.
-pub(super) struct Fnv(pub(super) u64);
-
-impl Default for Fnv {
-    fn default() -> Self {
-        Fnv(0xcbf2_9ce4_8422_2325)
-    }
-}
-
-impl Fnv {
-    pub(super) fn write(&mut self, bytes: &[u8]) {
-        for &b in bytes {
-            self.0 = (self.0 ^ b as u64).wrapping_mul(0x0100_0000_01b3);
-        }
-    }
 }
 
 /// Score written records (of tracks.json at `path`) against the capture's ground truth, if it

@@ -5,11 +5,11 @@
 use std::sync::Arc;
 
 use super::search::SearchSettings;
-use super::session::Fnv;
 use super::window::WindowSettings;
 use crate::capture::Capture;
 use crate::error::Result;
 use crate::geometry::Pose;
+use crate::io::Fnv;
 use crate::settings::Rules;
 
 #[derive(Debug, Clone, serde::Serialize, serde::Deserialize)]
