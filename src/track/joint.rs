@@ -298,48 +298,8 @@ pub fn align_both(
                 poses.upper.compose(&at.upper.inverse()).log(),
                 poses.lower.compose(&at.lower.inverse()).log(),
             ];
-            let mut h = Matrix12::zeros();
-            let mut g = Vector12::zeros();
-            found = [0; 2];
-            for c in &frozen {
-                let view = &views[c.view];
-                let here = ContourPoint {
-                    pixel: c.point.pixel + c.point.jacobian * moved[c.arch],
-                    ..c.point
-                };
-                let Some(d) = edge_offset(&here, view.masks[c.arch], reach) else {
-                    continue;
-                };
-                // What the pixels between the sample and the edge cost (see the module's
-                // note): past a silhouette, the model's pixels outside the mask; short of it,
-                // the mask's pixels it leaves uncovered; past a BOI edge, BOI outside the mask.
-                let cost = match (c.kind, d < 0.0) {
-                    (Kind::Silhouette { boi }, true) => {
-                        let at = here.pixel + 0.5 * d * here.normal;
-                        let extra = view.extra[c.arch].map_or(0.0, |e| e(at));
-                        extra + if boi { lambda } else { 0.0 }
-                    }
-                    (Kind::Silhouette { .. }, false) => 1.0,
-                    (Kind::Region, true) => lambda,
-                    (Kind::Region, false) => 0.0,
-                };
-                if cost == 0.0 {
-                    continue;
-                }
-                // Tukey's weight on the offset, relative to the reach: an edge found far
-                // off is as likely another edge.
-                let u = d / reach;
-                let tukey = (1.0 - u * u).max(0.0).powi(2);
-                let w = cost * tukey * here.length / d.abs().max(s.smoothing_px);
-                let mut row = Vector12::zeros();
-                row.fixed_rows_mut::<6>(0).copy_from(&c.row);
-                if c.arch == 1 {
-                    row.fixed_rows_mut::<6>(6).copy_from(&c.row);
-                }
-                h += w * row * row.transpose();
-                g += w * d * row;
-                found[c.arch] += 1;
-            }
+            let (mut h, mut g, seen) = edge_terms(&frozen, views, &moved, reach, lambda, s);
+            found = seen;
             information = h;
             // The motion prior: each arch's displacement from where the frame started, at
             // its centre and at an arch's radius.
@@ -412,6 +372,77 @@ pub fn align_both(
         samples: found,
         information,
     }
+}
+
+/// The edges' terms of the normal equations at the samples `frozen` moved by `moved` (each
+/// arch's increment since they were drawn), and how many samples of each arch found an edge.
+fn edge_terms(
+    frozen: &[Sample],
+    views: &[JointView],
+    moved: &[Vector6<f64>; 2],
+    reach: f64,
+    lambda: f64,
+    s: &GaussNewtonSettings,
+) -> (Matrix12, Vector12, [usize; 2]) {
+    let mut h = Matrix12::zeros();
+    let mut g = Vector12::zeros();
+    let mut found = [0; 2];
+    for c in frozen {
+        let view = &views[c.view];
+        let here = ContourPoint {
+            pixel: c.point.pixel + c.point.jacobian * moved[c.arch],
+            ..c.point
+        };
+        let Some(d) = edge_offset(&here, view.masks[c.arch], reach) else {
+            continue;
+        };
+        // What the pixels between the sample and the edge cost (see the module's
+        // note): past a silhouette, the model's pixels outside the mask; short of it,
+        // the mask's pixels it leaves uncovered; past a BOI edge, BOI outside the mask.
+        let cost = match (c.kind, d < 0.0) {
+            (Kind::Silhouette { boi }, true) => {
+                let at = here.pixel + 0.5 * d * here.normal;
+                let extra = view.extra[c.arch].map_or(0.0, |e| e(at));
+                extra + if boi { lambda } else { 0.0 }
+            }
+            (Kind::Silhouette { .. }, false) => 1.0,
+            (Kind::Region, true) => lambda,
+            (Kind::Region, false) => 0.0,
+        };
+        if cost == 0.0 {
+            continue;
+        }
+        // Tukey's weight on the offset, relative to the reach: an edge found far
+        // off is as likely another edge.
+        let u = d / reach;
+        let tukey = (1.0 - u * u).max(0.0).powi(2);
+        let w = cost * tukey * here.length / d.abs().max(s.smoothing_px);
+        let mut row = Vector12::zeros();
+        row.fixed_rows_mut::<6>(0).copy_from(&c.row);
+        if c.arch == 1 {
+            row.fixed_rows_mut::<6>(6).copy_from(&c.row);
+        }
+        h += w * row * row.transpose();
+        g += w * d * row;
+        found[c.arch] += 1;
+    }
+    (h, g, found)
+}
+
+/// The information the masks of `views` give about `poses` (as [`JointAligned::information`]),
+/// at the finest reach: for frames another search found, so that the window weighs them too.
+pub fn information_at(
+    arches: [(&Mesh, &ContourEdges); 2],
+    poses: &ArchPoses,
+    views: &[JointView],
+    apart: bool,
+    lambda: f64,
+    s: &GaussNewtonSettings,
+) -> Matrix12 {
+    let frozen = samples(arches, poses, views, apart, s.spacing_px);
+    let reach = s.reaches_px.last().copied().unwrap_or(1.0);
+    let still = [Vector6::zeros(); 2];
+    edge_terms(&frozen, views, &still, reach, lambda, s).0
 }
 
 #[cfg(test)]

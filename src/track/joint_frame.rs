@@ -3,7 +3,7 @@
 //! (the tracker's penalties as hinges), and which of result and start stands, by the energy.
 
 use super::align::FrameReads;
-use super::joint::{JawHinge, JointView, Matrix12, align_both};
+use super::joint::{JawHinge, JointView, Matrix12, align_both, information_at};
 use super::penalties::Penalties;
 use super::prior::JawPrior;
 use super::search::SearchSettings;
@@ -13,6 +13,7 @@ use crate::energy::contour::ContourEdges;
 use crate::energy::{Energy, EnergyEngine};
 use crate::error::Result;
 use crate::geometry::Pose;
+use crate::mesh::Mesh;
 
 /// What stays the same over a run.
 pub struct JointFrame<'a> {
@@ -37,6 +38,48 @@ pub struct JointFound {
 }
 
 impl JointFrame<'_> {
+    /// Both arches with their contour edges.
+    fn arches(&self) -> [(&Mesh, &ContourEdges); 2] {
+        [
+            (self.capture.upper(), &self.edges[0]),
+            (self.capture.lower(), &self.edges[1]),
+        ]
+    }
+
+    /// Whether the masks label each arch apart.
+    fn apart(&self) -> bool {
+        matches!(self.capture.mask_mode(), MaskMode::PerArch { .. })
+    }
+
+    /// `f` given what every camera's masks say (each arch's label, and the extra cost of a
+    /// model drawn over another's label or the mouth).
+    fn with_views<T>(&self, masks: &FrameMasks, f: impl FnOnce(&[JointView]) -> T) -> T {
+        let weights = self.search.weights();
+        let reads = FrameReads::new(self.capture, masks);
+        let on: Vec<_> = (0..reads.len())
+            .map(|c| Arch::BOTH.map(|a| reads.on(c, a)))
+            .collect();
+        let extra: Vec<_> = (0..reads.len())
+            .map(|c| Arch::BOTH.map(|a| reads.extra(c, a, &weights)))
+            .collect();
+        let views: Vec<JointView> = (0..reads.len())
+            .map(|c| JointView {
+                camera: reads.camera(c),
+                masks: [&on[c][0], &on[c][1]],
+                extra: [Some(&extra[c][0]), Some(&extra[c][1])],
+            })
+            .collect();
+        f(&views)
+    }
+
+    /// The information the masks give about `poses`: for a frame another search found, so
+    /// that the window over frames weighs it too.
+    pub fn information(&self, masks: &FrameMasks, poses: &ArchPoses) -> Matrix12 {
+        let (lambda, gn) = (self.search.lambda, &self.search.gauss_newton);
+        self.with_views(masks, |views| {
+            information_at(self.arches(), poses, views, self.apart(), lambda, gn)
+        })
+    }
     /// Each candidate scored on both arches: the objective of each plus the penalties, and
     /// the energies (upper, lower).
     fn score_both(
@@ -66,7 +109,6 @@ impl JointFrame<'_> {
         masks: &FrameMasks,
         starts: &[ArchPoses],
     ) -> Result<JointFound> {
-        let edges = self.edges;
         let weights = self.search.weights();
         let gn = &self.search.gauss_newton;
         let mut evaluations = 0;
@@ -102,20 +144,6 @@ impl JointFrame<'_> {
                 .expect("options");
             start = *best;
         }
-        let reads = FrameReads::new(self.capture, masks);
-        let on: Vec<_> = (0..reads.len())
-            .map(|c| Arch::BOTH.map(|a| reads.on(c, a)))
-            .collect();
-        let extra: Vec<_> = (0..reads.len())
-            .map(|c| Arch::BOTH.map(|a| reads.extra(c, a, &weights)))
-            .collect();
-        let views: Vec<JointView> = (0..reads.len())
-            .map(|c| JointView {
-                camera: reads.camera(c),
-                masks: [&on[c][0], &on[c][1]],
-                extra: [Some(&extra[c][0]), Some(&extra[c][1])],
-            })
-            .collect();
         let contact = self.penalties.contact.as_ref();
         let manifold = self.penalties.manifold.as_ref();
         let depth = |jaw: &Pose| contact.map_or(0.0, |c| c.depth(jaw));
@@ -135,19 +163,17 @@ impl JointFrame<'_> {
                 stiffness: gn.manifold_stiffness,
             });
         }
-        let apart = matches!(self.capture.mask_mode(), MaskMode::PerArch { .. });
-        let found = align_both(
-            [
-                (self.capture.upper(), &edges[0]),
-                (self.capture.lower(), &edges[1]),
-            ],
-            start,
-            &views,
-            apart,
-            &hinges,
-            weights.lambda,
-            gn,
-        );
+        let found = self.with_views(masks, |views| {
+            align_both(
+                self.arches(),
+                start,
+                views,
+                self.apart(),
+                &hinges,
+                weights.lambda,
+                gn,
+            )
+        });
         let (found, steps, information) = (found.poses, found.steps, found.information);
         // The result, each arch's result with the other's start, and the start: where the
         // steps made an arch worse (too few samples to hold it, an edge that is another's),

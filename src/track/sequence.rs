@@ -132,12 +132,15 @@ pub fn track_frames(
                 settings.jaw_manifold_tolerance_mm,
             )
         });
-    let edges = (settings.search.solver != Solver::Paper).then(|| {
-        [
-            ContourEdges::of(capture.upper()),
-            ContourEdges::of(capture.lower()),
-        ]
-    });
+    // The solvers that align outlines need the edges; so does the window, which weighs each
+    // frame by what its edges say.
+    let edges =
+        (settings.search.solver != Solver::Paper || settings.window.frames > 0).then(|| {
+            [
+                ContourEdges::of(capture.upper()),
+                ContourEdges::of(capture.lower()),
+            ]
+        });
     let run = Run {
         capture,
         settings,
@@ -398,8 +401,26 @@ fn track_frame(
         (poses, [upper, lower]),
         &mut evaluations,
     )?;
+    // What the masks say about the poses found, for the window over frames.
+    let information = match (&run.edges, settings.window.frames > 0) {
+        (Some(edges), true) => Some(
+            JointFrame {
+                capture,
+                search: &settings.search,
+                prior,
+                penalties,
+                edges,
+            }
+            .information(masks, &poses),
+        ),
+        _ => None,
+    };
     let result = finish(settings, state, frame, poses, energies, evaluations);
-    Ok(FrameResult { steps, ..result })
+    Ok(FrameResult {
+        steps,
+        information,
+        ..result
+    })
 }
 
 /// A frame lost (worse than any tracked frame may be) has its arches looked for afresh, from
