@@ -19,7 +19,8 @@ use super::window::{Estimate, WindowSettings, settled};
 use crate::arch::ArchPoses;
 use crate::error::{Error, Result};
 use crate::formats::{
-    ArchEnergyJson, FrameRecordJson, PerArchJson, PoseJson, TRACKS_FORMAT, TrackedJson, TracksJson,
+    ArchEnergyJson, FrameRecordJson, PerArchJson, PoseJson, Status, TRACKS_FORMAT, TrackedJson,
+    TracksJson,
 };
 use crate::io::{check_replaceable, write_json_atomic};
 
@@ -227,7 +228,12 @@ impl TracksWriter {
         };
         while self.settled.len() < complete {
             let t = self.settled.len();
-            self.settled.push(settled(&self.estimates, t, &self.window));
+            // A frame without masks keeps the last pose, as settled.
+            let poses = match (self.records[t].status(), self.settled.last()) {
+                (Status::NoData, Some(last)) => *last,
+                _ => settled(&self.estimates, t, &self.window),
+            };
+            self.settled.push(poses);
         }
     }
 
@@ -236,7 +242,7 @@ impl TracksWriter {
     fn output(&self) -> Vec<FrameRecordJson> {
         let mut out = self.records.clone();
         for (rec, poses) in out.iter_mut().zip(&self.settled) {
-            if rec.tracked.is_some() {
+            if rec.tracked.is_some() || rec.status() == Status::NoData {
                 rec.upper = PoseJson::from(&poses.upper);
                 rec.lower = PoseJson::from(&poses.lower);
                 rec.jaw = Some(PoseJson::from(&poses.jaw()));

@@ -40,8 +40,8 @@ pub struct FrameResult {
     /// search).
     pub steps: usize,
     /// How sharply the masks hold the poses (Gauss-Newton's information about them, in
-    /// [ξ_u; ξ_j]): what the window over frames weighs the frame by. `None` for frames the
-    /// paper's search or a fresh look found.
+    /// [ξ_u; ξ_j]): what the window over frames weighs the frame by. `None` without masks,
+    /// for a frame found afresh by Gauss-Newton, or with the window off.
     pub information: Option<Matrix12>,
     pub seconds: f64,
 }

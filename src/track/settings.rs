@@ -70,7 +70,7 @@ pub struct TrackSettings {
     /// What replaces the fields above when the masks label the mouth (`masks.mouth`) and
     /// `search.mouth_weight` is above 0.
     pub labelled: LabelledSettings,
-    /// The window over frames (a fixed-lag smoother of the frames Gauss-Newton tracked).
+    /// The window over frames (a fixed-lag smoother of the tracked frames).
     /// Left out of the output's fingerprint at its defaults.
     #[serde(skip_serializing_if = "WindowSettings::is_default")]
     pub window: WindowSettings,

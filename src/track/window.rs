@@ -11,8 +11,8 @@
 //! masks (it moves fast; its acceleration is no smaller than the masks' noise), but it gains
 //! from the head: where the edges pin the lower arch in the world, a steadier upper arch makes
 //! a truer jaw. The problem is linear in the increments; one solve per frame. A frame without
-//! information (found by the paper's search, or afresh) holds its poses and the others see it
-//! as fixed. A frame's output is final once the `frames` after it are tracked.
+//! information (no masks, or found afresh) holds its poses and the others see it as fixed. A
+//! frame's output is final once the `frames` after it are tracked.
 
 use nalgebra::{DMatrix, DVector, Matrix6, Vector6};
 
