@@ -5,7 +5,7 @@ use anyhow::Context;
 use jawtrack::anatomy::MeshMetric;
 use jawtrack::capture::Capture;
 use jawtrack::energy::Region;
-use jawtrack::formats::{FrameRecordJson, Status};
+use jawtrack::formats::read_jaw_poses;
 use jawtrack::rig::{JawRig, RigSettings};
 use jawtrack::track::{SessionOptions, TrackSettings, score_records};
 
@@ -114,7 +114,7 @@ pub fn run(Args { run: a, two_pass }: Args) -> anyhow::Result<()> {
     let mut options = a.session_options(&capture)?;
     if two_pass {
         let first = SessionOptions {
-            output: beside(&a.output, "pass1.json"),
+            output: a.output.with_extension("pass1.json"),
             ..options.clone()
         };
         let summary = super::run::track(&capture, first.clone())?;
@@ -123,8 +123,8 @@ pub fn run(Args { run: a, two_pass }: Args) -> anyhow::Result<()> {
         if let Some(report) = score_records(&capture, &first.output, &summary.records)? {
             super::report::score(&report);
         }
-        let rig_path = beside(&a.output, "rig.json");
-        let rig = learn_rig(&capture, &first.output, &summary.records)?;
+        let rig_path = a.output.with_extension("rig.json");
+        let rig = learn_rig(&capture, &first.output)?;
         rig.save(&rig_path)?;
         println!(
             "learned the subject's rig -> {}\nsecond pass, held to it:",
@@ -142,24 +142,9 @@ pub fn run(Args { run: a, two_pass }: Args) -> anyhow::Result<()> {
     Ok(())
 }
 
-/// `output` with its extension replaced by `suffix` (tracks.json -> tracks.pass1.json).
-fn beside(output: &Path, suffix: &str) -> PathBuf {
-    output.with_extension(suffix)
-}
-
-/// The rig of the frames tracked `ok`, learned as `rig learn` does by default.
-fn learn_rig(
-    capture: &Capture,
-    path: &Path,
-    records: &[FrameRecordJson],
-) -> anyhow::Result<JawRig> {
-    let mut jaws = Vec::new();
-    for r in records.iter().filter(|r| r.status() == Status::Ok) {
-        let field = format!("frames[{}]", r.frame);
-        let upper = r.upper.to_pose(path, &format!("{field}.upper"))?;
-        let lower = r.lower.to_pose(path, &format!("{field}.lower"))?;
-        jaws.push(upper.inverse().compose(&lower));
-    }
+/// The rig of the frames `path` has tracked `ok`, learned as `rig learn` does by default.
+fn learn_rig(capture: &Capture, path: &Path) -> anyhow::Result<JawRig> {
+    let jaws = read_jaw_poses(path)?.poses;
     let metric = MeshMetric::new(capture.lower());
     let rig = super::run::with_progress("learning the subject's rig", |progress| {
         JawRig::learn(&jaws, &metric, &RigSettings::default(), progress)

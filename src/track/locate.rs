@@ -53,7 +53,7 @@ const CENTRING_ROUNDS: usize = 2;
 const KEEP: usize = 4;
 /// The tilts (degrees) tried about the arches' left-right axis, coarse to fine.
 const TILT_DEG: [u32; 3] = [4, 2, 1];
-/// Solver runs per start at most at most, and the share of the objective a run must gain for
+/// Solver runs per start at most, and the share of the objective a run must gain for
 /// another.
 const MAX_SOLVES: usize = 6;
 const MIN_GAIN: f64 = 0.01;
@@ -258,8 +258,9 @@ pub fn locate(
     engine: &dyn EnergyEngine,
     masks: &FrameMasks,
     settings: &TrackSettings,
+    edges: &[ContourEdges; 2],
 ) -> Result<Located> {
-    let problem = match find(capture, engine, masks, settings)? {
+    let problem = match find(capture, engine, masks, settings, edges)? {
         Ok(located) => return Ok(located),
         Err(NotFound::Unseen(n)) => format!(
             "the teeth show in {n} camera(s) (at least {MIN_PIXELS} mask pixels); placing the \
@@ -290,8 +291,9 @@ pub fn relocate(
     engine: &dyn EnergyEngine,
     masks: &FrameMasks,
     settings: &TrackSettings,
+    edges: &[ContourEdges; 2],
 ) -> Result<Option<Located>> {
-    Ok(find(capture, engine, masks, settings)?.ok())
+    Ok(find(capture, engine, masks, settings, edges)?.ok())
 }
 
 fn find(
@@ -299,6 +301,7 @@ fn find(
     engine: &dyn EnergyEngine,
     masks: &FrameMasks,
     settings: &TrackSettings,
+    edges: &[ContourEdges; 2],
 ) -> Result<std::result::Result<Located, NotFound>> {
     if matches!(capture.mask_mode(), MaskMode::Combined) {
         return Ok(Err(NotFound::Combined));
@@ -330,13 +333,7 @@ fn find(
     let Some(frame) = world_frame(upper_seen) else {
         return Ok(Err(NotFound::Unplaced));
     };
-    let target = triangulate(
-        &upper_seen
-            .iter()
-            .map(|b| (b.camera, b.centroid))
-            .collect::<Vec<_>>(),
-    )
-    .unwrap_or(frame.teeth);
+    let target = frame.teeth;
     let seen: Vec<&Camera> = upper_seen.iter().map(|b| b.camera).collect();
 
     let (upper, lower) = (capture.upper(), capture.lower());
@@ -361,7 +358,6 @@ fn find(
         }
     }
     let reads = FrameReads::new(capture, masks);
-    let upper_edges = ContourEdges::of(upper);
     let align_settings = AlignSettings {
         reaches_px: REACHES_PX.to_vec(),
         ..AlignSettings::default()
@@ -376,9 +372,16 @@ fn find(
                     None => break,
                 }
             }
-            let (arch, edges) = (Arch::Upper, (upper, &upper_edges));
+            let upper_edges = (upper, &edges[0]);
             reads
-                .align(arch, &weights, edges, pose, &[], &align_settings)
+                .align(
+                    Arch::Upper,
+                    &weights,
+                    upper_edges,
+                    pose,
+                    &[],
+                    &align_settings,
+                )
                 .pose
         })
         .collect();
@@ -396,43 +399,46 @@ fn find(
         .map(|(e, p)| (e.objective(&weights), *p))
         .collect();
     ranked.sort_by(|a, b| a.0.total_cmp(&b.0));
-    let edges = [ContourEdges::of(upper), ContourEdges::of(lower)];
+    // Which side of each arch the other lies on is the meshes' own business (their crowns face
+    // each other): both ways, for each arch, and the energy decides.
     let lower_thinnest = lower.principal_axes().1[0];
-    let mut best: Option<Located> = None;
-    for &(_, upper_pose) in ranked.iter().take(KEEP) {
-        // Which side of each arch the other lies on is the meshes' own business (their crowns
-        // face each other): both ways, for each arch, and the energy decides.
-        let mut starts = Vec::new();
-        for upper_up in [up, -up] {
-            for lower_up in [lower_thinnest, -lower_thinnest] {
-                let jaw = jaw_guess(upper, lower, &upper_up, &lower_up);
-                let prior = JawPrior::new(
+    let priors: Vec<JawPrior> = [up, -up]
+        .iter()
+        .flat_map(|upper_up| {
+            [lower_thinnest, -lower_thinnest].map(|lower_up| {
+                JawPrior::new(
                     upper,
                     lower,
-                    &jaw,
+                    &jaw_guess(upper, lower, upper_up, &lower_up),
                     settings.jaw_prior_grid,
                     settings.jaw_prior_fine_grid,
                     settings.jaw_prior_nearest,
                     centre(capture, Arch::Lower),
-                );
-                let options: Vec<ArchPoses> = prior
-                    .coarse
-                    .iter()
-                    .map(|j| ArchPoses {
-                        upper: upper_pose,
-                        lower: upper_pose.compose(j),
-                    })
-                    .collect();
-                evaluations += options.len();
-                let energies = engine.evaluate(Arch::Lower, &options)?;
-                let (start, objective) = options
-                    .iter()
-                    .zip(energies)
-                    .map(|(o, e)| (*o, e.objective(&weights)))
-                    .min_by(|a, b| a.1.total_cmp(&b.1))
-                    .expect("the jaw prior's grid");
-                starts.push((objective, start, prior));
-            }
+                )
+            })
+        })
+        .collect();
+    let mut best: Option<Located> = None;
+    for &(_, upper_pose) in ranked.iter().take(KEEP) {
+        let mut starts = Vec::new();
+        for prior in &priors {
+            let options: Vec<ArchPoses> = prior
+                .coarse
+                .iter()
+                .map(|j| ArchPoses {
+                    upper: upper_pose,
+                    lower: upper_pose.compose(j),
+                })
+                .collect();
+            evaluations += options.len();
+            let energies = engine.evaluate(Arch::Lower, &options)?;
+            let (start, objective) = options
+                .iter()
+                .zip(energies)
+                .map(|(o, e)| (*o, e.objective(&weights)))
+                .min_by(|a, b| a.1.total_cmp(&b.1))
+                .expect("the jaw prior's grid");
+            starts.push((objective, start, prior));
         }
         let (_, start, prior) = starts
             .into_iter()
@@ -441,9 +447,9 @@ fn find(
         let solver = JointFrame {
             capture,
             search: &settings.search,
-            prior: &prior,
+            prior,
             penalties: &Penalties::NONE,
-            edges: &edges,
+            edges,
         };
         let mut found = refine(&solver, engine, masks, start, &weights, &mut evaluations)?;
         // The nod: masks that show the teeth's edges and not the gums barely tell the occlusal

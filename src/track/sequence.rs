@@ -132,15 +132,12 @@ pub fn track_frames(
                 settings.jaw_manifold_tolerance_mm,
             )
         });
-    // The solvers that align outlines need the edges; so does the window, which weighs each
-    // frame by what its edges say.
-    let edges =
-        (settings.search.solver != Solver::Paper || settings.window.frames > 0).then(|| {
-            [
-                ContourEdges::of(capture.upper()),
-                ContourEdges::of(capture.lower()),
-            ]
-        });
+    // The solvers that align outlines, the window (which weighs each frame by what its edges
+    // say) and the fresh look for a lost frame all read the arches' contour edges.
+    let edges = [
+        ContourEdges::of(capture.upper()),
+        ContourEdges::of(capture.lower()),
+    ];
     let run = Run {
         capture,
         settings,
@@ -234,11 +231,22 @@ struct Run<'a> {
     centres: [Vector3<f64>; 2],
     prior: JawPrior,
     penalties: Penalties,
-    /// Each arch's contour edges, for the solvers that align outlines.
-    edges: Option<[ContourEdges; 2]>,
+    /// Each arch's contour edges.
+    edges: [ContourEdges; 2],
 }
 
 impl Run<'_> {
+    /// The Gauss-Newton solver over both arches with this run's prior and penalties.
+    fn joint_frame(&self) -> JointFrame<'_> {
+        JointFrame {
+            capture: self.capture,
+            search: &self.settings.search,
+            prior: &self.prior,
+            penalties: &self.penalties,
+            edges: &self.edges,
+        }
+    }
+
     /// `arch`'s pose from the start `from` (both arches), by the run's solver.
     fn find(
         &self,
@@ -249,13 +257,13 @@ impl Run<'_> {
         seed: u64,
     ) -> Result<Found> {
         let search_settings = &self.settings.search;
-        match (&self.edges, search_settings.solver) {
-            (Some(edges), Solver::Contour) => align_arch(
+        match search_settings.solver {
+            Solver::Contour => align_arch(
                 engine,
                 &ArchAlign {
                     capture: self.capture,
                     masks,
-                    edges: &edges[arch.index()],
+                    edges: &self.edges[arch.index()],
                     arch,
                     from,
                     penalties: &self.penalties,
@@ -308,15 +316,8 @@ fn track_frame(
     // Start, per arch, from whichever fits this frame best: the last good pose, its
     // constant-velocity extrapolation, or the latest low-confidence estimate since.
     let starts = starts(state);
-    if let (Solver::GaussNewton, Some(edges)) = (settings.search.solver, &run.edges) {
-        let frame_solver = JointFrame {
-            capture,
-            search: &settings.search,
-            prior,
-            penalties,
-            edges,
-        };
-        let found = frame_solver.solve(&*engine, masks, &starts)?;
+    if settings.search.solver == Solver::GaussNewton {
+        let found = run.joint_frame().solve(&*engine, masks, &starts)?;
         evaluations += found.evaluations;
         steps = found.steps;
         // A frame that fits worse than the recent ones (the confidence rule with the
@@ -402,19 +403,8 @@ fn track_frame(
         &mut evaluations,
     )?;
     // What the masks say about the poses found, for the window over frames.
-    let information = match (&run.edges, settings.window.frames > 0) {
-        (Some(edges), true) => Some(
-            JointFrame {
-                capture,
-                search: &settings.search,
-                prior,
-                penalties,
-                edges,
-            }
-            .information(masks, &poses),
-        ),
-        _ => None,
-    };
+    let information =
+        (settings.window.frames > 0).then(|| run.joint_frame().information(masks, &poses));
     let result = finish(settings, state, frame, poses, energies, evaluations);
     Ok(FrameResult {
         steps,
@@ -437,7 +427,7 @@ fn relocated(
     if worst <= settings.relocate_area_error {
         return Ok((poses, energies));
     }
-    let Some(found) = relocate(run.capture, engine, masks, settings)? else {
+    let Some(found) = relocate(run.capture, engine, masks, settings, &run.edges)? else {
         return Ok((poses, energies));
     };
     *evaluations += found.evaluations;

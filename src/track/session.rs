@@ -16,6 +16,7 @@ use super::settings::TrackSettings;
 use super::state::TrackState;
 use crate::arch::ArchPoses;
 use crate::capture::Capture;
+use crate::energy::contour::ContourEdges;
 use crate::energy::{Backend, EnergyEngine, Region, Scene, open_engine};
 use crate::error::{Error, Result};
 use crate::formats::FrameRecordJson;
@@ -137,13 +138,12 @@ impl<'c> Session<'c> {
             _ => {
                 let masks = capture.load_masks(range.start)?;
                 engine.set_frame(&masks)?;
-                locate(
-                    capture,
-                    engine.as_ref(),
-                    &masks,
-                    &options.settings.for_capture(capture),
-                )?
-                .poses
+                let edges = [
+                    ContourEdges::of(capture.upper()),
+                    ContourEdges::of(capture.lower()),
+                ];
+                let settings = options.settings.for_capture(capture);
+                locate(capture, engine.as_ref(), &masks, &settings, &edges)?.poses
             }
         };
         let state = if options.resume {
