@@ -35,6 +35,14 @@ pub enum Error {
         field: String,
         problem: String,
     },
+    /// A program jawtrack ran (sbatch, a task of a batch) failed; `path` is the script it
+    /// ran or the log it wrote.
+    #[error("{}: `{program}` failed: {problem}", path.display())]
+    Command {
+        path: PathBuf,
+        program: String,
+        problem: String,
+    },
     #[error("{}: cannot decode the image: {problem}", path.display())]
     Image { path: PathBuf, problem: String },
     /// The GPU energy engine could not start or run. (Part of the message, not a `#[source]`,

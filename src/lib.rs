@@ -7,6 +7,7 @@
 
 pub mod anatomy;
 pub mod arch;
+pub mod batch;
 pub mod capture;
 pub mod energy;
 pub mod envelope;

@@ -132,7 +132,7 @@ impl LoadArgs {
 }
 
 /// A distance in mm that must be finite and not negative (`--simplify-mm`).
-fn non_negative_mm(s: &str) -> Result<f64, String> {
+pub fn non_negative_mm(s: &str) -> Result<f64, String> {
     match s.trim().parse::<f64>() {
         Ok(v) if v.is_finite() && (0.0..=100.0).contains(&v) => Ok(v),
         Ok(v) => Err(format!("must be a distance from 0 to 100 mm, found {v}")),

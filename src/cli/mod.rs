@@ -2,12 +2,14 @@
 //! `run`: their long steps with progress): the only place that prints or uses anyhow or clap.
 
 mod args;
+mod batch;
 mod bench;
 mod demo;
 mod energy;
 mod envelope;
 mod export;
 mod import;
+mod merge;
 mod mesh;
 mod report;
 mod rig;
@@ -50,6 +52,11 @@ enum Command {
     Segment(segment::Args),
     /// Track both arches through a capture and write tracks.json.
     Track(track::Args),
+    /// Join chunks of a take tracked apart (`track --frames A..B`) into one tracks.json.
+    Merge(merge::Args),
+    /// A study on a cluster: takes cut into chunks, as a Slurm job array or processes here.
+    #[command(subcommand)]
+    Batch(batch::Command),
     /// Score a tracks.json against the capture's ground truth.
     Score(score::Args),
     /// Print the energy terms of a frame per camera and arch.
@@ -85,6 +92,8 @@ pub fn main() -> ExitCode {
         Command::Validate(a) => validate::run(a),
         Command::Segment(a) => segment::run(a),
         Command::Track(a) => track::run(a),
+        Command::Merge(a) => merge::run(a),
+        Command::Batch(c) => batch::run(c),
         Command::Score(a) => score::run(a),
         Command::Energy(a) => energy::run(a),
         Command::Export(a) => export::run(a),

@@ -222,8 +222,8 @@ pub fn track_summary(output: &Path, s: &Summary) {
 
 pub fn score(r: &ScoreReport) {
     println!(
-        "against ground truth, {} frames ({} ok, {} low-confidence, {} no-data): median / 95th percentile / max",
-        r.frames, r.frames_ok, r.frames_low_confidence, r.frames_no_data
+        "against {}, {} frames ({} ok, {} low-confidence, {} no-data): median / 95th percentile / max",
+        r.reference, r.frames, r.frames_ok, r.frames_low_confidence, r.frames_no_data
     );
     let line = |name: &str, what: &str, s: &Stats| {
         println!(

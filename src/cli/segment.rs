@@ -33,7 +33,7 @@ pub fn run(args: Args) -> anyhow::Result<()> {
     };
     let options = jawtrack::capture::OpenOptions {
         masks_to_come: true,
-        ..a.load.open_options()
+        ..a.how.load.open_options()
     };
     let mut capture = Capture::open_with(&a.capture, options)
         .with_context(|| format!("invalid capture {}", a.capture.display()))?;

@@ -4,7 +4,7 @@ use std::sync::Arc;
 use anyhow::Context;
 use jawtrack::anatomy::MeshMetric;
 use jawtrack::capture::Capture;
-use jawtrack::energy::Region;
+use jawtrack::energy::{Backend, Region};
 use jawtrack::formats::read_jaw_poses;
 use jawtrack::rig::{JawRig, RigSettings};
 use jawtrack::track::{SessionOptions, TrackSettings, score_records};
@@ -13,8 +13,8 @@ use super::args::{
     EnergyArg, EngineArgs, LoadArgs, load_rig, parse_frames, rig_space, track_settings,
 };
 
-/// What `track` and `segment` share: the capture, the output, the frames, the engine, the
-/// settings, and how a run that exists is continued or started over.
+/// What `track` and `segment` share: the capture, the output, the frames, how they are
+/// tracked, and how a run that exists is continued or started over.
 #[derive(clap::Args)]
 pub struct RunArgs {
     /// The capture folder.
@@ -25,8 +25,6 @@ pub struct RunArgs {
     /// Frames to track: `A..B` (B excluded) or `A..=B`; default all.
     #[arg(long)]
     pub frames: Option<String>,
-    #[command(flatten)]
-    pub engine: EngineArgs,
     /// Write the paper's overlay pictures (mask white, model red at alpha 0.5, BOI green) per
     /// camera and frame into this folder.
     #[arg(long)]
@@ -38,6 +36,20 @@ pub struct RunArgs {
     /// folder again, which may be corrections made by hand).
     #[arg(long)]
     pub force: bool,
+    /// Find the first frame's poses from its masks (per-arch masks), even where init.json
+    /// gives them: for a run that starts later in a take (`--frames A..B`).
+    #[arg(long)]
+    pub locate: bool,
+    #[command(flatten)]
+    pub how: TrackingArgs,
+}
+
+/// How frames are tracked: what `track`, `segment` and `merge` (which re-tracks where chunks
+/// disagree) share, and what a batch passes to each of its tasks.
+#[derive(clap::Args)]
+pub struct TrackingArgs {
+    #[command(flatten)]
+    pub engine: EngineArgs,
     #[command(flatten)]
     pub load: LoadArgs,
     /// Tracking settings as JSON (the fields of `TrackSettings`; see docs/settings.md; missing
@@ -51,15 +63,47 @@ pub struct RunArgs {
     /// How the poses are found (`search.solver` of the settings; this wins).
     #[arg(long, value_enum)]
     pub search: Option<crate::cli::args::SearchArg>,
-    /// Find the first frame's poses from its masks (per-arch masks), even where init.json
-    /// gives them: for a run that starts later in a take (`--frames A..B`).
-    #[arg(long)]
-    pub locate: bool,
     /// The subject's own rig (`rig learn`'s or `envelope learn`'s, learned from this capture's
     /// tracks): the jaw is held to its manifold and ranges, and its poses are the jaw prior's
     /// starts, in place of the average joint's.
     #[arg(long)]
     pub rig: Option<PathBuf>,
+}
+
+impl TrackingArgs {
+    /// The capture at `dir`, loaded as these arguments ask.
+    pub fn open(&self, dir: &Path) -> anyhow::Result<Capture> {
+        let capture = Capture::open_with(dir, self.load.open_options())
+            .with_context(|| format!("invalid capture {}", dir.display()))?;
+        super::report::notes(&capture);
+        Ok(capture)
+    }
+
+    pub fn backend(&self) -> Backend {
+        self.engine.backend.into()
+    }
+
+    pub fn region(&self) -> Region {
+        self.engine.region.map_or(Region::Relevant, Into::into)
+    }
+
+    /// The tracking settings: the file's or the defaults, with the options that override them.
+    pub fn settings(&self) -> anyhow::Result<TrackSettings> {
+        Ok(TrackSettings {
+            jaw_space: self
+                .rig
+                .as_deref()
+                .map(|path| -> anyhow::Result<_> {
+                    let rig = load_rig(path)?;
+                    Ok(Arc::new(rig_space(
+                        rig.as_ref(),
+                        &path.display().to_string(),
+                    )?))
+                })
+                .transpose()?,
+            ..track_settings(self.settings.as_deref(), self.energy, self.search)?
+        })
+    }
 }
 
 impl RunArgs {
@@ -71,26 +115,13 @@ impl RunArgs {
                 .as_deref()
                 .map(|s| parse_frames(s, capture))
                 .transpose()?,
-            backend: self.engine.backend.into(),
-            region: self.engine.region.map_or(Region::Relevant, Into::into),
+            backend: self.how.backend(),
+            region: self.how.region(),
             overlays: self.overlays.clone(),
             resume: self.resume,
             force: self.force,
             locate: self.locate,
-            settings: TrackSettings {
-                jaw_space: self
-                    .rig
-                    .as_deref()
-                    .map(|path| -> anyhow::Result<_> {
-                        let rig = load_rig(path)?;
-                        Ok(Arc::new(rig_space(
-                            rig.as_ref(),
-                            &path.display().to_string(),
-                        )?))
-                    })
-                    .transpose()?,
-                ..track_settings(self.settings.as_deref(), self.energy, self.search)?
-            },
+            settings: self.how.settings()?,
             ..SessionOptions::new(&self.output)
         })
     }
@@ -108,9 +139,7 @@ pub struct Args {
 }
 
 pub fn run(Args { run: a, two_pass }: Args) -> anyhow::Result<()> {
-    let capture = Capture::open_with(&a.capture, a.load.open_options())
-        .with_context(|| format!("invalid capture {}", a.capture.display()))?;
-    super::report::notes(&capture);
+    let capture = a.how.open(&a.capture)?;
     let mut options = a.session_options(&capture)?;
     if two_pass {
         let first = SessionOptions {

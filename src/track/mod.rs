@@ -5,7 +5,8 @@
 //! adds to the objective (`penalties`: the arches' non-penetration, `contact`, and the jaw's
 //! manifold, `manifold`), tracks.json as it is written (`output`), scoring against ground
 //! truth (`score`) and overlays (`overlay`); the window over frames that settles each frame
-//! with its neighbours (`window`).
+//! with its neighbours (`window`); chunks of a take tracked apart joined into one run
+//! (`merge`).
 
 pub mod align;
 pub mod contact;
@@ -14,6 +15,7 @@ pub mod joint;
 pub mod joint_frame;
 pub mod locate;
 pub mod manifold;
+pub mod merge;
 pub mod output;
 pub mod overlay;
 pub mod penalties;

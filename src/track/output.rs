@@ -30,6 +30,15 @@ pub struct TracksWriter {
     path: PathBuf,
     journal_path: PathBuf,
     journal: std::fs::File,
+    frames: SettledFrames,
+    fingerprint: String,
+    last_rewrite: Instant,
+}
+
+/// Frames as tracked, and as the window over frames settles them: tracks.json's records are
+/// a pure function of the records as tracked, so a run written in pieces (`merge`) comes out
+/// as one written at once.
+pub struct SettledFrames {
     /// Every frame as tracked, as the journal has it.
     records: Vec<FrameRecordJson>,
     /// The same, as a reader of the journal gets them back.
@@ -37,8 +46,62 @@ pub struct TracksWriter {
     /// The frames the window has settled.
     settled: Vec<ArchPoses>,
     window: WindowSettings,
-    fingerprint: String,
-    last_rewrite: Instant,
+}
+
+impl SettledFrames {
+    pub fn new(window: &WindowSettings) -> SettledFrames {
+        SettledFrames {
+            records: Vec::new(),
+            estimates: Vec::new(),
+            settled: Vec::new(),
+            window: window.clone(),
+        }
+    }
+
+    /// Add the next frame as tracked (a record as [`as_tracked`] gives it back).
+    pub fn push(&mut self, record: FrameRecordJson, estimate: Estimate) {
+        self.records.push(record);
+        self.estimates.push(estimate);
+        self.settle(false);
+    }
+
+    /// The frames as tracked.
+    pub fn records(&self) -> &[FrameRecordJson] {
+        &self.records
+    }
+
+    /// Settle every frame whose window is complete, or, at the `end`, every frame.
+    pub fn settle(&mut self, end: bool) {
+        let n = self.estimates.len();
+        let complete = if end {
+            n
+        } else {
+            n.saturating_sub(self.window.frames)
+        };
+        while self.settled.len() < complete {
+            let t = self.settled.len();
+            // A frame without masks keeps the last pose, as settled.
+            let poses = match (self.records[t].status(), self.settled.last()) {
+                (Status::NoData, Some(last)) => *last,
+                _ => settled(&self.estimates, t, &self.window),
+            };
+            self.settled.push(poses);
+        }
+    }
+
+    /// The records as tracks.json has them: settled poses where the window has settled them,
+    /// the tracked ones beside them.
+    pub fn output(&self) -> Vec<FrameRecordJson> {
+        let mut out = self.records.clone();
+        for (rec, poses) in out.iter_mut().zip(&self.settled) {
+            if rec.tracked.is_some() || rec.status() == Status::NoData {
+                rec.upper = PoseJson::from(&poses.upper);
+                rec.lower = PoseJson::from(&poses.lower);
+                rec.jaw = Some(PoseJson::from(&poses.jaw()));
+            }
+        }
+        out
+    }
 }
 
 /// The journal's first line: what wrote it.
@@ -81,8 +144,8 @@ pub fn record(r: &FrameResult) -> FrameRecordJson {
 }
 
 /// A record as tracked (tracks.json's settled poses replaced by the tracked ones beside them)
-/// and the estimate it holds.
-fn as_tracked(path: &Path, mut rec: FrameRecordJson) -> Result<(FrameRecordJson, Estimate)> {
+/// and the estimate it holds; `path` is the file it was read from, for errors.
+pub fn as_tracked(path: &Path, mut rec: FrameRecordJson) -> Result<(FrameRecordJson, Estimate)> {
     let mut information = None;
     if let Some(t) = &rec.tracked {
         let field = format!("frame {}.tracked.information", rec.frame);
@@ -99,16 +162,18 @@ fn as_tracked(path: &Path, mut rec: FrameRecordJson) -> Result<(FrameRecordJson,
     Ok((rec, Estimate { poses, information }))
 }
 
-impl TracksWriter {
-    fn journal_path(path: &Path) -> PathBuf {
-        let mut name = path
-            .file_name()
-            .map(|n| n.to_os_string())
-            .unwrap_or_default();
-        name.push(".journal");
-        path.with_file_name(name)
-    }
+/// Where the journal of the run writing `path` is: beside it, `<name>.journal`. While it is
+/// there the run is unfinished.
+pub fn journal_path(path: &Path) -> PathBuf {
+    let mut name = path
+        .file_name()
+        .map(|n| n.to_os_string())
+        .unwrap_or_default();
+    name.push(".journal");
+    path.with_file_name(name)
+}
 
+impl TracksWriter {
     /// Start writing `path` for a run whose capture and settings have `fingerprint`. With
     /// `resume`, the frames already written (journal first, else tracks.json) are read back,
     /// checked (the same fingerprint; records as [`check_records`] wants them, within the
@@ -122,7 +187,7 @@ impl TracksWriter {
         fingerprint: &str,
         window: &WindowSettings,
     ) -> Result<(TracksWriter, Vec<FrameRecordJson>)> {
-        let journal_path = Self::journal_path(path);
+        let journal_path = journal_path(path);
         // Before anything is read or written: neither may replace a device, pipe or link.
         check_replaceable(path)?;
         check_replaceable(&journal_path)?;
@@ -147,20 +212,16 @@ impl TracksWriter {
                 "already exists; pass --resume to continue it or --force to start over",
             ));
         }
-        let mut estimates = Vec::new();
         let from = if journal_path.exists() {
             &journal_path
         } else {
             path
         };
-        let records: Vec<FrameRecordJson> = records
-            .into_iter()
-            .map(|r| {
-                let (r, e) = as_tracked(from, r)?;
-                estimates.push(e);
-                Ok(r)
-            })
-            .collect::<Result<_>>()?;
+        let mut tracked = SettledFrames::new(window);
+        for r in records {
+            let (r, e) = as_tracked(from, r)?;
+            tracked.push(r, e);
+        }
         let werr = |error| Error::Write {
             path: journal_path.clone(),
             error,
@@ -179,22 +240,19 @@ impl TracksWriter {
             serde_json::to_string(&head).expect("plain data")
         )
         .map_err(werr)?;
-        for r in &records {
+        for r in tracked.records() {
             writeln!(journal, "{}", serde_json::to_string(r).expect("plain data")).map_err(werr)?;
         }
         journal.sync_data().map_err(werr)?;
-        let mut writer = TracksWriter {
+        let records = tracked.records().to_vec();
+        let writer = TracksWriter {
             path: path.to_path_buf(),
             journal_path,
             journal,
-            records: records.clone(),
-            estimates,
-            settled: Vec::new(),
-            window: window.clone(),
+            frames: tracked,
             fingerprint: fingerprint.to_string(),
             last_rewrite: Instant::now(),
         };
-        writer.settle(false);
         Ok((writer, records))
     }
 
@@ -209,46 +267,11 @@ impl TracksWriter {
         // The estimate as a resumed run reads it back from the journal: the same bits.
         let rec: FrameRecordJson = serde_json::from_str(&line).expect("just written");
         let (rec, estimate) = as_tracked(&self.journal_path, rec)?;
-        self.records.push(rec);
-        self.estimates.push(estimate);
-        self.settle(false);
+        self.frames.push(rec, estimate);
         if self.last_rewrite.elapsed() >= REWRITE_EVERY {
             self.rewrite()?;
         }
         Ok(())
-    }
-
-    /// Settle every frame whose window is complete, or, at the `end`, every frame.
-    fn settle(&mut self, end: bool) {
-        let n = self.estimates.len();
-        let complete = if end {
-            n
-        } else {
-            n.saturating_sub(self.window.frames)
-        };
-        while self.settled.len() < complete {
-            let t = self.settled.len();
-            // A frame without masks keeps the last pose, as settled.
-            let poses = match (self.records[t].status(), self.settled.last()) {
-                (Status::NoData, Some(last)) => *last,
-                _ => settled(&self.estimates, t, &self.window),
-            };
-            self.settled.push(poses);
-        }
-    }
-
-    /// The records as tracks.json has them: settled poses where the window has settled them,
-    /// the tracked ones beside them.
-    fn output(&self) -> Vec<FrameRecordJson> {
-        let mut out = self.records.clone();
-        for (rec, poses) in out.iter_mut().zip(&self.settled) {
-            if rec.tracked.is_some() || rec.status() == Status::NoData {
-                rec.upper = PoseJson::from(&poses.upper);
-                rec.lower = PoseJson::from(&poses.lower);
-                rec.jaw = Some(PoseJson::from(&poses.jaw()));
-            }
-        }
-        out
     }
 
     fn rewrite(&mut self) -> Result<()> {
@@ -258,20 +281,20 @@ impl TracksWriter {
             &TracksJson {
                 format: TRACKS_FORMAT.to_string(),
                 fingerprint: Some(self.fingerprint.clone()),
-                frames: self.output(),
+                frames: self.frames.output(),
             },
         )
     }
 
     /// Settle the last frames, write tracks.json a last time and drop the journal.
     pub fn finish(mut self) -> Result<Vec<FrameRecordJson>> {
-        self.settle(true);
+        self.frames.settle(true);
         self.rewrite()?;
         std::fs::remove_file(&self.journal_path).map_err(|error| Error::Write {
             path: self.journal_path.clone(),
             error,
         })?;
-        Ok(self.output())
+        Ok(self.frames.output())
     }
 }
 

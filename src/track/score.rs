@@ -18,6 +18,8 @@ pub struct PoseErrors {
 
 #[derive(Debug, Clone, serde::Serialize)]
 pub struct ScoreReport {
+    /// What the poses are scored against: `ground truth`, or another run's file.
+    pub reference: String,
     pub frames: usize,
     pub frames_ok: usize,
     pub frames_low_confidence: usize,
@@ -88,6 +90,19 @@ impl FlagScore {
 /// the capture's ground truth; frames without ground truth are skipped.
 pub fn score(capture: &Capture, tracked: &[(FrameRecordJson, ArchPoses)]) -> Option<ScoreReport> {
     capture.gt()?;
+    Some(score_against(capture, tracked, "ground truth", &|frame| {
+        capture.gt_poses(frame)
+    }))
+}
+
+/// Score `tracked` against the `reference` poses of each frame (another run's, named
+/// `reference_name`); frames without them are skipped.
+pub fn score_against(
+    capture: &Capture,
+    tracked: &[(FrameRecordJson, ArchPoses)],
+    reference_name: &str,
+    reference: &dyn Fn(u32) -> Option<ArchPoses>,
+) -> ScoreReport {
     let metrics = [
         MeshMetric::new(capture.upper()),
         MeshMetric::new(capture.lower()),
@@ -98,7 +113,7 @@ pub fn score(capture: &Capture, tracked: &[(FrameRecordJson, ArchPoses)]) -> Opt
     let mut flagged = Vec::new();
     let (mut ok, mut low, mut none) = (0, 0, 0);
     for (rec, poses) in tracked {
-        let Some(gt) = capture.gt_poses(rec.frame) else {
+        let Some(gt) = reference(rec.frame) else {
             continue;
         };
         match rec.status() {
@@ -135,7 +150,8 @@ pub fn score(capture: &Capture, tracked: &[(FrameRecordJson, ArchPoses)]) -> Opt
         rotation_deg: Stats::of(&e[1]),
         translation_mm: Stats::of(&e[2]),
     };
-    Some(ScoreReport {
+    ScoreReport {
+        reference: reference_name.to_string(),
         frames: per_frame.len(),
         frames_ok: ok,
         frames_low_confidence: low,
@@ -146,7 +162,7 @@ pub fn score(capture: &Capture, tracked: &[(FrameRecordJson, ArchPoses)]) -> Opt
         area_error_percent: [Stats::of(&area[0]), Stats::of(&area[1])],
         per_frame,
         flags: FlagScore::of(&flagged, WRONG_MM),
-    })
+    }
 }
 
 #[cfg(test)]
