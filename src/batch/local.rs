@@ -43,13 +43,7 @@ pub fn run(
         path: logs.clone(),
         error,
     })?;
-    let tasks: Vec<usize> = plan
-        .progress()
-        .iter()
-        .enumerate()
-        .filter(|(_, p)| !p.finished)
-        .map(|(i, _)| i)
-        .collect();
+    let tasks = plan.unfinished();
     let parallel = parallel.clamp(1, tasks.len().max(1));
     let cores = std::thread::available_parallelism().map_or(1, |n| n.get());
     let threads = std::env::var("RAYON_NUM_THREADS")

@@ -190,6 +190,16 @@ impl Plan {
         args
     }
 
+    /// The tasks whose chunk is not finished.
+    pub fn unfinished(&self) -> Vec<usize> {
+        self.progress()
+            .iter()
+            .enumerate()
+            .filter(|(_, p)| !p.finished)
+            .map(|(i, _)| i)
+            .collect()
+    }
+
     /// How far each task has come.
     pub fn progress(&self) -> Vec<Progress> {
         self.tasks()

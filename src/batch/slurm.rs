@@ -152,13 +152,7 @@ fn quoted(script: &Path, args: &[String]) -> Result<String> {
 /// succeed (cancelled by Slurm if one fails: `batch status` tells which, and submitting again
 /// runs what is left). Each submission is added to `dir/jobs.json`.
 pub fn submit(plan: &Plan, dir: &Path) -> Result<Submission> {
-    let tasks: Vec<usize> = plan
-        .progress()
-        .iter()
-        .enumerate()
-        .filter(|(_, p)| !p.finished)
-        .map(|(i, _)| i)
-        .collect();
+    let tasks = plan.unfinished();
     let track = dir.join(TRACK_SCRIPT);
     let merge = dir.join(MERGE_SCRIPT);
     for script in [&track, &merge] {

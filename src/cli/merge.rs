@@ -20,8 +20,8 @@ pub struct Args {
     #[arg(long)]
     pub force: bool,
     /// Overlapping frames agree when both chunks put the jaw, and the upper arch, within this
-    /// of each other (mm, mean vertex distance); where they do not, the later chunk is tracked
-    /// again from the earlier one.
+    /// of each other (mm, mean vertex distance), or within three times their frames' noise where
+    /// that is more; where they do not, the later chunk is tracked again from the earlier one.
     #[arg(long, default_value_t = DEFAULT_TOLERANCE_MM, value_parser = super::args::non_negative_mm)]
     pub tolerance_mm: f64,
     /// The options the chunks were tracked with (their fingerprints must match).
@@ -39,26 +39,29 @@ pub fn run(a: Args) -> anyhow::Result<()> {
         region: a.how.region(),
         tolerance_mm: a.tolerance_mm,
     };
-    let bar = super::progress_bar(0, "tracking again where chunks disagree");
-    let report = merge(&capture, &a.parts, &options, &mut |_| bar.inc(1))?;
-    bar.finish_and_clear();
+    let report = super::run::with_spinner(
+        "merging (tracking again where chunks disagree)",
+        || merge(&capture, &a.parts, &options, &mut |_| {}),
+    )?;
     let mm = |v: Option<f64>| v.map_or("-".to_string(), |v| format!("{v:.3}"));
     for s in &report.seams {
         println!(
-            "{}: overlap {}..{}, checked {}..{}: jaw {} mm, upper {} mm -> {}",
+            "{}: overlap {}..{}, checked {}..{}: jaw {} mm (limit {:.3}), upper {} mm (limit {:.3}) -> {}",
             s.part.display(),
             s.overlap.start,
             s.overlap.end,
             s.checked.start,
             s.checked.end,
             mm(s.jaw_mm),
+            s.limit_mm[0],
             mm(s.upper_mm),
+            s.limit_mm[1],
             if s.agreed() {
                 "agree".to_string()
             } else {
                 format!(
-                    "FLAGGED, beyond {} mm: its {} frames after the overlap tracked again",
-                    a.tolerance_mm, s.retracked
+                    "FLAGGED: its {} frames after the overlap tracked again",
+                    s.retracked
                 )
             }
         );

@@ -17,10 +17,18 @@ use crate::energy::{Backend, Region};
 use crate::error::{Error, Result};
 use crate::formats::{FrameRecordJson, Status, TRACKS_FORMAT, TracksJson};
 use crate::io::{check_replaceable, write_json_atomic};
+use crate::stats::Stats;
 
-/// How far apart two chunks' poses of a frame may be and still agree (mm, the mean distance
-/// of the arch's vertices, for the jaw and for the upper arch).
+/// How far apart two chunks' poses of a frame may always be and still agree (mm, the mean
+/// distance of the arch's vertices, for the jaw and for the upper arch).
 pub const DEFAULT_TOLERANCE_MM: f64 = 0.05;
+
+/// Two chunks agree within this many times their frames' combined noise. Each chunk's frames
+/// scatter about the motion by their noise (what the window over frames takes out of them),
+/// so two runs of the same frames differ by about the two noises combined, whichever started
+/// where, and drift apart for a few frames at a time (the median over the checked frames does
+/// not average that out); past three times that, one of them is on another track.
+pub const NOISE_FACTOR: f64 = 3.0;
 
 /// What a merge is asked to do.
 #[derive(Debug, Clone)]
@@ -46,10 +54,13 @@ pub struct Seam {
     /// The overlap's frames compared: its second half, where the later chunk has had half
     /// the overlap to settle from its own start.
     pub checked: Range<u32>,
-    /// The largest difference over the checked frames (mm); `None` where no checked frame was
+    /// The median difference over the checked frames (mm); `None` where no checked frame was
     /// `ok` in both.
     pub jaw_mm: Option<f64>,
     pub upper_mm: Option<f64>,
+    /// Where they stop agreeing: the tolerance, or more where the chunks' noise says so (mm;
+    /// jaw, upper arch).
+    pub limit_mm: [f64; 2],
     /// Frames tracked again from the earlier chunk's (0 where the overlap agreed).
     pub retracked: usize,
 }
@@ -74,6 +85,9 @@ pub struct MergeReport {
 struct Part {
     path: PathBuf,
     records: Vec<FrameRecordJson>,
+    /// How far its frames as tracked are from them as settled by the window (root mean square
+    /// over its `ok` frames, mm; jaw, upper arch): their noise. 0 without a window.
+    noise_mm: [f64; 2],
 }
 
 impl Part {
@@ -93,6 +107,7 @@ pub fn merge(
     options.settings.validate()?;
     let output = &options.output;
     check_replaceable(output)?;
+    check_replaceable(&journal_path(output))?;
     if (output.exists() || journal_path(output).exists()) && !options.force {
         return Err(Error::invalid(
             output,
@@ -100,6 +115,10 @@ pub fn merge(
             "already exists; pass --force to replace it",
         ));
     }
+    let metrics = [
+        MeshMetric::new(capture.upper()),
+        MeshMetric::new(capture.lower()),
+    ];
     let whole = fingerprint(capture, &options.settings, false);
     let located = fingerprint(capture, &options.settings, true);
     let mut chunks = Vec::new();
@@ -111,17 +130,23 @@ pub fn merge(
                 "is also a chunk to merge: write the merged run to another file",
             ));
         }
-        chunks.push(read_part(capture, path, [&whole, &located])?);
+        chunks.push(read_part(capture, path, [&whole, &located], &metrics)?);
+    }
+    // A journal left beside the output (a run or merge into it, interrupted) would be taken
+    // for the frames tracked again below: it goes with the output it belonged to.
+    let journal = journal_path(output);
+    if journal.exists() {
+        std::fs::remove_file(&journal).map_err(|error| Error::Write {
+            path: journal.clone(),
+            error,
+        })?;
     }
     chunks.sort_by_key(|p| p.records[0].frame);
     let Some((first, rest)) = chunks.split_first() else {
         return Err(Error::invalid(output, "chunks", "none given"));
     };
-    let metrics = [
-        MeshMetric::new(capture.upper()),
-        MeshMetric::new(capture.lower()),
-    ];
     let mut merged = first.records.clone();
+    let mut noise = first.noise_mm;
     let mut seams = Vec::new();
     for part in rest {
         let last = merged[merged.len() - 1].frame;
@@ -149,8 +174,14 @@ pub fn merge(
         let overlap = start..last + 1;
         let checked = overlap.start + overlap.len() as u32 / 2..overlap.end;
         let (jaw_mm, upper_mm) = compare(&part.path, &merged, &part.records, &checked, &metrics)?;
+        let limit_mm = [0, 1].map(|k| {
+            options
+                .tolerance_mm
+                .max(NOISE_FACTOR * noise[k].hypot(part.noise_mm[k]))
+        });
         let agreed = matches!((jaw_mm, upper_mm), (Some(j), Some(u))
-            if j <= options.tolerance_mm && u <= options.tolerance_mm);
+            if j <= limit_mm[0] && u <= limit_mm[1]);
+        noise = part.noise_mm;
         let retracked = if agreed {
             merged.extend(part.records.iter().filter(|r| r.frame > last).cloned());
             0
@@ -164,6 +195,7 @@ pub fn merge(
             checked,
             jaw_mm,
             upper_mm,
+            limit_mm,
             retracked,
         });
     }
@@ -192,7 +224,12 @@ pub fn merge(
 }
 
 /// A chunk's finished tracks.json, its records as tracked.
-fn read_part(capture: &Capture, path: &Path, fingerprints: [&String; 2]) -> Result<Part> {
+fn read_part(
+    capture: &Capture,
+    path: &Path,
+    fingerprints: [&String; 2],
+    [upper, lower]: &[MeshMetric; 2],
+) -> Result<Part> {
     let journal = journal_path(path);
     if journal.exists() {
         return Err(Error::invalid(
@@ -221,6 +258,15 @@ fn read_part(capture: &Capture, path: &Path, fingerprints: [&String; 2]) -> Resu
     check_records(path, &tj.frames, &capture.frames(), |i| {
         format!("frames[{i}]")
     })?;
+    let mut squares = [0.0, 0.0];
+    let mut count = 0;
+    for r in tj.frames.iter().filter(|r| r.status() == Status::Ok) {
+        let settled = r.poses(path)?;
+        let tracked = as_tracked(path, r.clone())?.1.poses;
+        squares[0] += lower.mean_distance(&settled.jaw(), &tracked.jaw()).powi(2);
+        squares[1] += upper.mean_distance(&settled.upper, &tracked.upper).powi(2);
+        count += 1;
+    }
     let records = tj
         .frames
         .into_iter()
@@ -229,11 +275,14 @@ fn read_part(capture: &Capture, path: &Path, fingerprints: [&String; 2]) -> Resu
     Ok(Part {
         path: path.to_path_buf(),
         records,
+        noise_mm: squares.map(|s| (s / count.max(1) as f64).sqrt()),
     })
 }
 
-/// The largest differences of the jaw and of the upper arch between `a` and `b` on the
-/// `checked` frames that are `ok` in both (`path`: the later chunk's, for errors).
+/// The median differences of the jaw and of the upper arch between `a` and `b` over the
+/// `checked` frames that are `ok` in both (`path`: the later chunk's, for errors). The median,
+/// not the largest: one frame where either run is at its noisiest says nothing about which
+/// track the later chunk is on.
 fn compare(
     path: &Path,
     a: &[FrameRecordJson],
@@ -241,7 +290,7 @@ fn compare(
     checked: &Range<u32>,
     [upper, lower]: &[MeshMetric; 2],
 ) -> Result<(Option<f64>, Option<f64>)> {
-    let (mut jaw_mm, mut upper_mm) = (None::<f64>, None::<f64>);
+    let (mut jaw, mut up) = (Vec::new(), Vec::new());
     for frame in checked.clone() {
         let find = |rs: &[FrameRecordJson]| rs.iter().find(|r| r.frame == frame).cloned();
         let (Some(ra), Some(rb)) = (find(a), find(b)) else {
@@ -251,12 +300,11 @@ fn compare(
             continue;
         }
         let (pa, pb) = (ra.poses(path)?, rb.poses(path)?);
-        let j = lower.mean_distance(&pa.jaw(), &pb.jaw());
-        let u = upper.mean_distance(&pa.upper, &pb.upper);
-        jaw_mm = Some(jaw_mm.map_or(j, |m| m.max(j)));
-        upper_mm = Some(upper_mm.map_or(u, |m| m.max(u)));
+        jaw.push(lower.mean_distance(&pa.jaw(), &pb.jaw()));
+        up.push(upper.mean_distance(&pa.upper, &pb.upper));
     }
-    Ok((jaw_mm, upper_mm))
+    let median = |v: &[f64]| (!v.is_empty()).then(|| Stats::of(v).median);
+    Ok((median(&jaw), median(&up)))
 }
 
 /// The frames after `merged` up to `end` tracked again, continuing `merged` as a resumed run
