@@ -39,10 +39,10 @@ pub fn run(a: Args) -> anyhow::Result<()> {
         region: a.how.region(),
         tolerance_mm: a.tolerance_mm,
     };
-    let report = super::run::with_spinner(
-        "merging (tracking again where chunks disagree)",
-        || merge(&capture, &a.parts, &options, &mut |_| {}),
-    )?;
+    let report =
+        super::run::with_spinner("merging (tracking again where chunks disagree)", || {
+            merge(&capture, &a.parts, &options, &mut |_| {})
+        })?;
     let mm = |v: Option<f64>| v.map_or("-".to_string(), |v| format!("{v:.3}"));
     for s in &report.seams {
         println!(
