@@ -116,9 +116,9 @@ fn chunks_tracked_here_merge_into_the_run_of_one_task() {
     let whole = single(GN);
     let gaps = gaps(&whole, &merged);
     assert_eq!(gaps.len(), 30);
-    // Where the later chunk takes over, it tracks from its own start; a clean take's
-    // minimum is sharp enough for both to land within a tenth of a millimetre.
-    assert!(worst(&gaps) < 0.1, "{gaps:?}");
+    // Where the later chunk takes over, it tracks from its own start; on a clean take both
+    // land within the 0.05 mm (about 0.01 mm here).
+    assert!(worst(&gaps) < 0.05, "{gaps:?}");
     // The merged run is the whole run: the same fingerprint, so `track --resume` accepts it
     // and has nothing left to do.
     assert_eq!(read(&merged).fingerprint, read(&whole).fingerprint);
@@ -407,6 +407,7 @@ fn a_slurm_job_array_tracks_the_chunks_and_a_cancelled_task_resumes() {
         "no merged run; merge log:\n{}",
         std::fs::read_to_string(dir.join("logs/merge.log")).unwrap_or_default()
     );
+    // The paper's search lands less exactly than Gauss-Newton (about 0.05 mm here).
     let gaps = gaps(&single(&[]), &merged);
-    assert!(worst(&gaps) < 0.15, "{gaps:?}");
+    assert!(worst(&gaps) < 0.1, "{gaps:?}");
 }
