@@ -297,6 +297,63 @@ fn the_tracked_timeline_scrubs_with_the_overlays() {
     b.js("const s = document.getElementById('scrub'); s.value = 25; s.dispatchEvent(new Event('input'));");
     b.wait("return Array.from(document.querySelectorAll('#overlays img')).every((i) => i.complete && i.naturalWidth > 0)");
     assert_eq!(b.js("return window.view.trackedFrame"), json!(25));
+    // The timeline reads: its axes cover the curves in their units, and the frame under the
+    // pointer is said in words; a click there shows it.
+    let axes = b.js("return window.view.timelineAxes");
+    let range = |key: &str| {
+        b.js(&format!(
+            "const v = window.view.scene.timeline.frames.map((f) => f.animator.{key}); return [Math.min(...v), Math.max(...v)]"
+        ))
+    };
+    let covers = |ticks: &serde_json::Value, [lo, hi]: [f64; 2]| {
+        let t: Vec<f64> = ticks
+            .as_array()
+            .unwrap()
+            .iter()
+            .map(|v| v.as_f64().unwrap())
+            .collect();
+        assert!(
+            t.len() >= 2 && t[0] <= lo && *t.last().unwrap() >= hi,
+            "{t:?} for {lo}..{hi}"
+        );
+    };
+    let pair = |v: serde_json::Value| [v[0].as_f64().unwrap(), v[1].as_f64().unwrap()];
+    covers(&axes["degrees"], pair(range("opening_deg")));
+    let (lat, pro) = (pair(range("lateral_mm")), pair(range("protrusion_mm")));
+    covers(&axes["mm"], [lat[0].min(pro[0]), lat[1].max(pro[1])]);
+    let frames = axes["frames"].as_array().unwrap();
+    assert!(frames.len() >= 3, "{axes}");
+    assert!(
+        frames
+            .iter()
+            .all(|f| (0..40).contains(&f.as_i64().unwrap())),
+        "{axes}"
+    );
+    let readout = b.js("return document.getElementById('timeline-readout').textContent");
+    assert!(
+        readout
+            .as_str()
+            .unwrap()
+            .starts_with("frame 25 (ok): opening "),
+        "{readout}"
+    );
+    let point = |event: &str| {
+        format!(
+            "const c = document.getElementById('timeline'), r = c.getBoundingClientRect();              const x = 52 + (10 / 39) * (c.width - 104);              c.dispatchEvent(new MouseEvent('{event}', {{clientX: r.left + x * r.width / c.width, clientY: r.top + 40, bubbles: true}}));"
+        )
+    };
+    b.js(&point("mousemove"));
+    let readout = b.js("return document.getElementById('timeline-readout').textContent");
+    assert!(
+        readout.as_str().unwrap().starts_with("frame 10 ("),
+        "{readout}"
+    );
+    assert!(
+        readout.as_str().unwrap().contains(" mm, protrusion "),
+        "{readout}"
+    );
+    b.js(&point("click"));
+    assert_eq!(b.js("return window.view.trackedFrame"), json!(10));
     let sizes = b.js("return Array.from(document.querySelectorAll('#overlays img')).map((i) => [i.naturalWidth, i.naturalHeight])");
     // Each picture is the region around the teeth, at the frame's aspect.
     for size in sizes.as_array().unwrap() {

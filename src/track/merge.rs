@@ -141,7 +141,7 @@ pub fn merge(
             error,
         })?;
     }
-    chunks.sort_by_key(|p| p.records[0].frame);
+    chunks.sort_by_key(|p| (p.frames().start, p.frames().end));
     let Some((first, rest)) = chunks.split_first() else {
         return Err(Error::invalid(output, "chunks", "none given"));
     };

@@ -492,24 +492,80 @@ $("import-keys").addEventListener("change", async (e) => {
 });
 
 // ---- the tracked timeline ----
-function drawTimeline(tl, at) {
-  const c = $("timeline"), g = c.getContext("2d"), w = c.width, h = c.height;
-  g.fillStyle = "#2c3138"; g.fillRect(0, 0, w, h);
-  const n = tl.frames.length, x = (i) => (n === 1 ? w / 2 : (i / (n - 1)) * (w - 10) + 5);
+// Opening on the left axis (degrees), lateral and protrusion on the right (mm), frames along
+// the bottom; frames the tracker flagged are bands behind the curves.
+const TL = { left: 52, right: 52, top: 8, bottom: 22 };
+const SERIES = [["opening_deg", "#64b5f6"], ["lateral_mm", "#ffb74d"], ["protrusion_mm", "#81c784"]];
+// Round ticks (1, 2 or 5 times a power of ten) covering lo..hi.
+function ticks(lo, hi, count) {
+  if (!(hi > lo)) { lo -= 1; hi += 1; }
+  const raw = (hi - lo) / count, p = Math.pow(10, Math.floor(Math.log10(raw)));
+  const step = [1, 2, 5, 10].map((m) => m * p).find((s) => s >= raw);
+  const first = Math.floor(lo / step + 1e-9) * step, out = [];
+  for (let v = first; v < hi + step - 1e-9 * step; v += step) out.push(Number(v.toFixed(10)));
+  return out;
+}
+function timelineGeometry(tl) {
+  const c = $("timeline"), w = c.width, h = c.height, n = tl.frames.length;
+  const x0 = TL.left, x1 = w - TL.right, y0 = TL.top, y1 = h - TL.bottom;
+  const x = (i) => (n === 1 ? (x0 + x1) / 2 : x0 + (i / (n - 1)) * (x1 - x0));
+  const at = (px) => Math.max(0, Math.min(n - 1, Math.round(((px - x0) / (x1 - x0)) * (n - 1))));
+  const values = (k) => tl.frames.map((f) => f.animator[k]);
+  const deg = ticks(Math.min(...values("opening_deg")), Math.max(...values("opening_deg")), 4);
+  const mmAll = values("lateral_mm").concat(values("protrusion_mm"));
+  const mm = ticks(Math.min(...mmAll), Math.max(...mmAll), 4);
+  const frames = ticks(tl.frames[0].frame, tl.frames[n - 1].frame, 10)
+    .filter((f) => f >= tl.frames[0].frame && f <= tl.frames[n - 1].frame);
+  const y = (v, t) => y1 - ((v - t[0]) / (t[t.length - 1] - t[0])) * (y1 - y0);
+  return { w, h, n, x0, x1, y0, y1, x, at, y, deg, mm, frames };
+}
+function drawTimeline(tl, at, hover) {
+  const G = timelineGeometry(tl), g = $("timeline").getContext("2d");
+  view.timelineAxes = { degrees: G.deg, mm: G.mm, frames: G.frames };
+  g.fillStyle = "#2c3138"; g.fillRect(0, 0, G.w, G.h);
+  const band = (G.x1 - G.x0) / Math.max(G.n - 1, 1);
   tl.frames.forEach((f, i) => {
     if (f.status === "ok") return;
-    g.fillStyle = f.status === "low-confidence" ? "#e53935" : "#888";
-    g.fillRect(x(i) - 1, h - 10, 3, 10);
+    g.fillStyle = f.status === "low-confidence" ? "rgba(229,57,53,0.35)" : "rgba(160,160,160,0.3)";
+    g.fillRect(G.x(i) - band / 2, G.y0, Math.max(band, 2), G.y1 - G.y0);
   });
-  const series = [["opening_deg", "#64b5f6"], ["lateral_mm", "#ffb74d"], ["protrusion_mm", "#81c784"]];
-  for (const [key, colour] of series) {
-    const v = tl.frames.map((f) => f.animator[key]);
-    const lo = Math.min(...v), hi = Math.max(...v), span = Math.max(hi - lo, 1e-6);
-    g.strokeStyle = colour; g.beginPath();
-    v.forEach((y, i) => { const py = h - 14 - ((y - lo) / span) * (h - 24); if (i) g.lineTo(x(i), py); else g.moveTo(x(i), py); });
+  g.font = "11px sans-serif"; g.lineWidth = 1;
+  // Grid and labels: degrees left, millimetres right, frames below.
+  g.textBaseline = "middle";
+  G.deg.forEach((v) => {
+    const py = G.y(v, G.deg);
+    g.strokeStyle = "#3d444d"; g.beginPath(); g.moveTo(G.x0, py); g.lineTo(G.x1, py); g.stroke();
+    g.fillStyle = "#64b5f6"; g.textAlign = "right"; g.fillText(`${v}°`, G.x0 - 4, py);
+  });
+  G.mm.forEach((v) => {
+    g.fillStyle = "#ffcc80"; g.textAlign = "left"; g.fillText(`${v} mm`, G.x1 + 4, G.y(v, G.mm));
+  });
+  g.textBaseline = "top"; g.textAlign = "center"; g.fillStyle = "#ccc";
+  const first = tl.frames[0].frame, last = tl.frames[G.n - 1].frame;
+  G.frames.forEach((f) => {
+    const px = G.n === 1 ? G.x(0) : G.x0 + ((f - first) / Math.max(last - first, 1)) * (G.x1 - G.x0);
+    g.strokeStyle = "#888"; g.beginPath(); g.moveTo(px, G.y1); g.lineTo(px, G.y1 + 4); g.stroke();
+    g.fillText(String(f), px, G.y1 + 6);
+  });
+  g.strokeStyle = "#888"; g.strokeRect(G.x0, G.y0, G.x1 - G.x0, G.y1 - G.y0);
+  for (const [key, colour] of SERIES) {
+    const t = key === "opening_deg" ? G.deg : G.mm;
+    g.strokeStyle = colour; g.lineWidth = 1.5; g.beginPath();
+    tl.frames.forEach((f, i) => { const py = G.y(f.animator[key], t); if (i) g.lineTo(G.x(i), py); else g.moveTo(G.x(i), py); });
     g.stroke();
   }
-  g.strokeStyle = "#fff"; g.beginPath(); g.moveTo(x(at), 0); g.lineTo(x(at), h); g.stroke();
+  g.lineWidth = 1;
+  g.strokeStyle = "#fff"; g.beginPath(); g.moveTo(G.x(at), G.y0); g.lineTo(G.x(at), G.y1); g.stroke();
+  if (hover !== undefined && hover !== at) {
+    g.setLineDash([3, 3]); g.strokeStyle = "#bbb";
+    g.beginPath(); g.moveTo(G.x(hover), G.y0); g.lineTo(G.x(hover), G.y1); g.stroke();
+    g.setLineDash([]);
+  }
+}
+// What the timeline says of frame i, in words.
+function frameReadout(tl, i) {
+  const f = tl.frames[i], a = f.animator;
+  return `frame ${f.frame} (${f.status}): opening ${a.opening_deg.toFixed(1)}°, lateral ${a.lateral_mm.toFixed(2)} mm, protrusion ${a.protrusion_mm.toFixed(2)} mm`;
 }
 function showFrame(tl, i) {
   const f = tl.frames[i];
@@ -520,6 +576,7 @@ function showFrame(tl, i) {
   NAMES.forEach((n, k) => { $(n).value = values[k]; $(`${n}-value`).textContent = `${values[k].toFixed(k ? 2 : 1)} ${UNITS[k]}`; });
   $("frame-label").textContent = `frame ${f.frame} (${f.status}): the tracked pose; the overlays draw the upper arch red, the lower yellow, the boundary of interest green, the mask white`;
   for (const cam of tl.cameras) $(`overlay-${cam}`).src = `/overlay/${encodeURIComponent(cam)}/${f.frame}.png`;
+  $("timeline-readout").textContent = frameReadout(tl, i);
   drawTimeline(tl, i);
   draw();
 }
@@ -533,12 +590,24 @@ function setupTimeline(tl) {
     $("overlays").appendChild(img);
   }
   scrub.addEventListener("input", () => showFrame(tl, Number(scrub.value)));
+  // The canvas may be drawn smaller than its pixels: pointer positions are scaled to them.
+  const frameAt = (e) => timelineGeometry(tl).at((e.offsetX * e.target.width) / e.target.clientWidth);
   $("timeline").addEventListener("click", (e) => {
-    const i = Math.round((e.offsetX / e.target.clientWidth) * (tl.frames.length - 1));
+    const i = frameAt(e);
     scrub.value = i;
     showFrame(tl, i);
   });
+  $("timeline").addEventListener("mousemove", (e) => {
+    const i = frameAt(e);
+    $("timeline-readout").textContent = frameReadout(tl, i);
+    drawTimeline(tl, Number(scrub.value), i);
+  });
+  $("timeline").addEventListener("mouseleave", () => {
+    $("timeline-readout").textContent = frameReadout(tl, Number(scrub.value));
+    drawTimeline(tl, Number(scrub.value));
+  });
   for (const cam of tl.cameras) $(`overlay-${cam}`).src = `/overlay/${encodeURIComponent(cam)}/${tl.frames[0].frame}.png`;
+  $("timeline-readout").textContent = frameReadout(tl, 0);
   drawTimeline(tl, 0);
 }
 
