@@ -411,3 +411,76 @@ fn a_slurm_job_array_tracks_the_chunks_and_a_cancelled_task_resumes() {
     let gaps = gaps(&single(&[]), &merged);
     assert!(worst(&gaps) < 0.1, "{gaps:?}");
 }
+
+/// The Python with Ray to run the driver with (JAWTRACK_RAY_PYTHON, else python3), when it
+/// imports Ray; with JAWTRACK_REQUIRE_RAY set it must.
+fn ray_python() -> Option<String> {
+    let python = std::env::var("JAWTRACK_RAY_PYTHON").unwrap_or_else(|_| "python3".into());
+    let has_ray = Command::new(&python)
+        .args(["-c", "import ray"])
+        .stderr(Stdio::null())
+        .status()
+        .is_ok_and(|s| s.success());
+    if !has_ray {
+        assert!(
+            std::env::var_os("JAWTRACK_REQUIRE_RAY").is_none(),
+            "JAWTRACK_REQUIRE_RAY is set but {python} cannot import ray"
+        );
+        eprintln!("skipped: {python} has no ray");
+        return None;
+    }
+    Some(python)
+}
+
+#[test]
+fn the_ray_driver_runs_the_plan_and_runs_again_what_failed() {
+    let Some(python) = ray_python() else {
+        return;
+    };
+    let t = tempfile::tempdir().unwrap();
+    let dir = t.path().join("batch");
+    let mut args = vec![
+        "batch",
+        "ray",
+        s(take()),
+        "-o",
+        s(&dir),
+        "--chunk-frames",
+        "10",
+        "--overlap",
+        "4",
+        "--",
+    ];
+    args.extend(GN);
+    ok(&args);
+    let driver = dir.join("ray_batch.py");
+    // A chunk whose journal is not one: its task fails (each retry too), the merge waits.
+    let journal = dir.join("take/parts/chunk-0001.json.journal");
+    std::fs::create_dir_all(journal.parent().unwrap()).unwrap();
+    std::fs::write(&journal, "not a journal\n{\n").unwrap();
+    let run = || {
+        Command::new(&python)
+            .args([s(&driver), s(&dir), "--cpus", "1", "--retries", "1"])
+            .output()
+            .unwrap()
+    };
+    let out = run();
+    let err = String::from_utf8_lossy(&out.stderr);
+    assert!(!out.status.success(), "{err}");
+    assert!(
+        err.contains("task 1 FAILED") && err.contains("ray-track-1.log"),
+        "{err}"
+    );
+    assert!(!dir.join("take/tracks.json").exists());
+    // Put right, the driver runs again: the finished chunks have nothing left to do.
+    std::fs::remove_file(&journal).unwrap();
+    let out = run();
+    assert!(
+        out.status.success(),
+        "{}",
+        String::from_utf8_lossy(&out.stderr)
+    );
+    let merged = dir.join("take/tracks.json");
+    assert!(String::from_utf8_lossy(&out.stdout).contains("merged -> "));
+    assert!(worst(&gaps(&single(GN), &merged)) < 0.05);
+}

@@ -2,9 +2,11 @@
 //! neighbours, one `jawtrack track` task per chunk (resumable, so a task preempted or killed
 //! is run again without losing its frames), then one `jawtrack merge` per take. The plan is a
 //! file (`plan.json` in the batch folder) of command lines, so every runner runs the same
-//! commands: Slurm job arrays (`slurm`), or processes on this machine (`local`).
+//! commands: Slurm job arrays (`slurm`), a Ray cluster (`ray`), or processes on this machine
+//! (`local`).
 
 pub mod local;
+pub mod ray;
 pub mod slurm;
 
 use std::ops::Range;

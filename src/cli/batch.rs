@@ -3,7 +3,7 @@ use std::path::{Path, PathBuf};
 use anyhow::{Context, bail};
 use clap::Parser;
 use jawtrack::batch::slurm::{self, Resources};
-use jawtrack::batch::{Plan, TakeFrames, local};
+use jawtrack::batch::{Plan, TakeFrames, local, ray};
 use jawtrack::capture::MaskMode;
 
 use super::track::TrackingArgs;
@@ -13,6 +13,9 @@ pub enum Command {
     /// Plan a study as a Slurm job array (a task per chunk of frames, then a merge job per
     /// run) into DIR: plan.json, track.sbatch, merge.sbatch; with --submit, submit them.
     Slurm(SlurmArgs),
+    /// Plan a study as `batch slurm` does, for Ray: commands.json and ray_batch.py, a driver
+    /// that runs each chunk as a Ray task (`python3 DIR/ray_batch.py DIR [--address auto]`).
+    Ray(PlanArgs),
     /// Submit the tasks of DIR not yet finished, and the merge job after them.
     Submit {
         /// The batch folder (`batch slurm`'s -o).
@@ -119,6 +122,20 @@ pub fn run(command: Command) -> anyhow::Result<()> {
             } else {
                 println!("submit with: jawtrack batch submit {}", dir.display());
             }
+            Ok(())
+        }
+        Command::Ray(a) => {
+            let (plan, dir) = make_plan(&a)?;
+            ray::write_driver(&plan, &dir)?;
+            plan.save(&dir)?;
+            println!(
+                "{} tasks over {} runs -> {}\nrun with: python3 {} {} [--address auto] [--cpus C] [--gpus G] (Python with `pip install ray`)",
+                plan.tasks().len(),
+                plan.takes.len(),
+                dir.display(),
+                dir.join(ray::DRIVER).display(),
+                dir.display()
+            );
             Ok(())
         }
         Command::Submit { dir } => {
