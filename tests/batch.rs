@@ -91,24 +91,34 @@ fn worst(gaps: &[(u32, f64, f64)]) -> f64 {
 
 const GN: &[&str] = &["--search", "gauss-newton"];
 
+/// `jawtrack batch KIND <the take> -o DIR --chunk-frames N --overlap K`, then `extra`.
+fn plan_args<'a>(
+    kind: &'a str,
+    dir: &'a Path,
+    chunk: &'a str,
+    overlap: &'a str,
+    extra: &[&'a str],
+) -> Vec<&'a str> {
+    let mut args = vec![
+        "batch",
+        kind,
+        s(take()),
+        "-o",
+        s(dir),
+        "--chunk-frames",
+        chunk,
+        "--overlap",
+        overlap,
+    ];
+    args.extend(extra);
+    args
+}
+
 #[test]
 fn chunks_tracked_here_merge_into_the_run_of_one_task() {
     let t = tempfile::tempdir().unwrap();
     let dir = t.path().join("batch");
-    let mut args = vec![
-        "batch",
-        "local",
-        s(take()),
-        "-o",
-        s(&dir),
-        "--chunk-frames",
-        "10",
-        "--overlap",
-        "4",
-        "--tasks",
-        "2",
-        "--",
-    ];
+    let mut args = plan_args("local", &dir, "10", "4", &["--tasks", "2", "--"]);
     args.extend(GN);
     let said = ok(&args);
     assert!(said.contains("3 tasks (3 to run, 2 at a time)"), "{said}");
@@ -133,15 +143,7 @@ fn chunks_tracked_here_merge_into_the_run_of_one_task() {
     );
     // A batch folder is not planned over.
     refused(
-        &[
-            "batch",
-            "local",
-            s(take()),
-            "-o",
-            s(&dir),
-            "--chunk-frames",
-            "10",
-        ],
+        &plan_args("local", &dir, "10", "4", &[]),
         &["holds a batch already", "batch status"],
     );
 }
@@ -242,18 +244,7 @@ fn a_killed_task_keeps_its_frames_and_the_batch_goes_on() {
     let t = tempfile::tempdir().unwrap();
     let dir = t.path().join("batch");
     // Planned for Slurm (written, not submitted), run here.
-    let mut args = vec![
-        "batch",
-        "slurm",
-        s(take()),
-        "-o",
-        s(&dir),
-        "--chunk-frames",
-        "15",
-        "--overlap",
-        "3",
-        "--",
-    ];
+    let mut args = plan_args("slurm", &dir, "15", "3", &["--"]);
     args.extend(GN);
     ok(&args);
     let plan = Plan::load(&dir).unwrap();
@@ -358,18 +349,7 @@ fn a_slurm_job_array_tracks_the_chunks_and_a_cancelled_task_resumes() {
     let t = tempfile::tempdir().unwrap();
     let dir = t.path().join("batch");
     // The paper's search (the default): slow enough a frame to cancel a task mid-chunk.
-    ok(&[
-        "batch",
-        "slurm",
-        s(take()),
-        "-o",
-        s(&dir),
-        "--chunk-frames",
-        "10",
-        "--overlap",
-        "4",
-        "--submit",
-    ]);
+    ok(&plan_args("slurm", &dir, "10", "4", &["--submit"]));
     let (array, merge) = last_jobs(&dir);
     let array = array.expect("an array job");
     let plan = Plan::load(&dir).unwrap();
@@ -439,18 +419,7 @@ fn the_ray_driver_runs_the_plan_and_runs_again_what_failed() {
     };
     let t = tempfile::tempdir().unwrap();
     let dir = t.path().join("batch");
-    let mut args = vec![
-        "batch",
-        "ray",
-        s(take()),
-        "-o",
-        s(&dir),
-        "--chunk-frames",
-        "10",
-        "--overlap",
-        "4",
-        "--",
-    ];
+    let mut args = plan_args("ray", &dir, "10", "4", &["--"]);
     args.extend(GN);
     ok(&args);
     let driver = dir.join("ray_batch.py");
