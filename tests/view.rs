@@ -297,6 +297,13 @@ fn the_tracked_timeline_scrubs_with_the_overlays() {
     b.js("const s = document.getElementById('scrub'); s.value = 25; s.dispatchEvent(new Event('input'));");
     b.wait("return Array.from(document.querySelectorAll('#overlays img')).every((i) => i.complete && i.naturalWidth > 0)");
     assert_eq!(b.js("return window.view.trackedFrame"), json!(25));
+    let sizes = b.js("return Array.from(document.querySelectorAll('#overlays img')).map((i) => [i.naturalWidth, i.naturalHeight])");
+    // Each picture is the region around the teeth, at the frame's aspect.
+    for size in sizes.as_array().unwrap() {
+        let (w, h) = (size[0].as_f64().unwrap(), size[1].as_f64().unwrap());
+        assert!((240.0..=960.0).contains(&w) && h <= 540.0, "{sizes}");
+        assert!((w / h - 960.0 / 540.0).abs() < 0.05, "{sizes}");
+    }
     // The timeline reads: its axes cover the curves in their units, and the frame under the
     // pointer is said in words; a click there shows it.
     let axes = b.js("return window.view.timelineAxes");
@@ -354,13 +361,6 @@ fn the_tracked_timeline_scrubs_with_the_overlays() {
     );
     b.js(&point("click"));
     assert_eq!(b.js("return window.view.trackedFrame"), json!(10));
-    let sizes = b.js("return Array.from(document.querySelectorAll('#overlays img')).map((i) => [i.naturalWidth, i.naturalHeight])");
-    // Each picture is the region around the teeth, at the frame's aspect.
-    for size in sizes.as_array().unwrap() {
-        let (w, h) = (size[0].as_f64().unwrap(), size[1].as_f64().unwrap());
-        assert!((240.0..=960.0).contains(&w) && h <= 540.0, "{sizes}");
-        assert!((w / h - 960.0 / 540.0).abs() < 0.05, "{sizes}");
-    }
 }
 
 /// The envelope rig on the same page: its sliders pose the jaw in the same units, inside
