@@ -43,6 +43,9 @@ pub enum Error {
         program: String,
         problem: String,
     },
+    /// A run was asked to stop (the page's Stop button); what it wrote so far is kept.
+    #[error("stopped at frame {frame}")]
+    Stopped { frame: u32 },
     #[error("{}: cannot decode the image: {problem}", path.display())]
     Image { path: PathBuf, problem: String },
     /// The GPU energy engine could not start or run. (Part of the message, not a `#[source]`,

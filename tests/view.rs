@@ -363,6 +363,181 @@ fn the_tracked_timeline_scrubs_with_the_overlays() {
     assert_eq!(b.js("return window.view.trackedFrame"), json!(10));
 }
 
+/// Per frame of `tracks`, the jaw's mean vertex error against the truth (mm).
+fn jaw_errors(capture: &jawtrack::capture::Capture, tracks: &Path) -> Vec<(u32, f64)> {
+    let t: jawtrack::formats::TracksJson =
+        serde_json::from_slice(&std::fs::read(tracks).unwrap()).unwrap();
+    let report = jawtrack::track::score_records(capture, tracks, &t.frames)
+        .unwrap()
+        .unwrap();
+    report.per_frame.iter().map(|(f, e)| (*f, e[2])).collect()
+}
+
+/// The page as the tracker's workbench. The lower arch is lost from frame 20 on (2 mm off,
+/// flagged); on frame 20 the user drags it back with the mouse in camera 0's picture (the
+/// energy's terms drop as it moves), saves the frame as hand-set and tracks the frames after it
+/// again: they come back to the tracker's usual error, tracks.json marks frame 20 as set by
+/// hand, and the file as it was is kept. A re-track stopped at once keeps every frame.
+#[test]
+fn a_lost_frame_corrected_with_the_mouse_tracks_again_from_there() {
+    if !have_browser() {
+        return;
+    }
+    use jawtrack::formats::{PoseJson, Status, TracksJson};
+    use jawtrack::geometry::Pose;
+    use nalgebra::Vector3;
+    let f = fixture();
+    let dir = tempfile::tempdir().unwrap();
+    let tracks = dir.path().join("tracks.json");
+    ok(&[
+        "track",
+        s(&f.capture),
+        "-o",
+        s(&tracks),
+        "--search",
+        "gauss-newton",
+    ]);
+    let capture = jawtrack::capture::Capture::open(&f.capture).unwrap();
+    let usual = jaw_errors(&capture, &tracks);
+    let usual_max = usual.iter().map(|e| e.1).fold(0.0, f64::max);
+
+    // Lose the lower arch from frame 20 on: 2 mm along camera 0's x axis.
+    let cam = capture.cameras()[0].mask_camera().unwrap();
+    let shift = cam.camera_from_world.rotation.inverse() * Vector3::new(2.0, 0.0, 0.0);
+    let mut t: TracksJson = serde_json::from_slice(&std::fs::read(&tracks).unwrap()).unwrap();
+    for r in t.frames.iter_mut().filter(|r| r.frame >= 20) {
+        let poses = r.poses(&tracks).unwrap();
+        let lower = Pose::from_translation(shift).compose(&poses.lower);
+        r.lower = PoseJson::from(&lower);
+        r.jaw = Some(PoseJson::from(&poses.upper.inverse().compose(&lower)));
+        r.tracked = None;
+        r.status = Some(Status::LowConfidence);
+    }
+    std::fs::write(&tracks, serde_json::to_vec(&t).unwrap()).unwrap();
+    let lost = jaw_errors(&capture, &tracks);
+    assert!(
+        lost.iter().filter(|e| e.0 > 20).all(|e| e.1 > 1.5),
+        "{lost:?}"
+    );
+    // How far that is in camera 0's picture, at the lower arch's centre.
+    let (lo, hi) = capture.lower().bounds();
+    let centre = Vector3::from_fn(|i, _| 0.5 * (lo[i] + hi[i]) as f64);
+    let lower20 = t.frames[20].poses(&tracks).unwrap().lower;
+    let depth = cam
+        .camera_from_world
+        .transform_point(&lower20.transform_point(&centre))
+        .z;
+    let pixels = 2.0 * cam.fx / depth;
+
+    let (_server, url) = serve(&[
+        s(&f.rig),
+        "--capture",
+        s(&f.capture),
+        "--tracks",
+        s(&tracks),
+        "--search",
+        "gauss-newton",
+    ]);
+    let b = Browser::start();
+    b.go(&url);
+    b.js("const s = document.getElementById('scrub'); s.value = 20; s.dispatchEvent(new Event('input'));");
+    b.wait("return Array.from(document.querySelectorAll('#overlays img')).every((i) => i.complete && i.naturalWidth > 0)");
+    let img = b.js("const i = document.getElementById('overlay-cam0'); i.scrollIntoView(); const r = i.getBoundingClientRect(); return [r.left, r.top, r.width, r.height, i.naturalWidth / i.clientWidth]");
+    let v = f64s(&img);
+    let from = [v[0] + v[2] / 2.0, v[1] + v[3] / 2.0];
+    b.drag(from, [from[0] - pixels / v[4], from[1]]);
+    b.wait("return window.view.workIdle() && window.view.draft() !== null");
+    let draft = b.js("return window.view.draft()");
+    assert_eq!(draft["frame"], json!(20));
+    let (now, saved) = (
+        draft["terms"]["lower"]["paper"].as_f64().unwrap(),
+        draft["saved"]["lower"]["paper"].as_f64().unwrap(),
+    );
+    assert!(
+        now < 0.5 * saved,
+        "the lower arch's E went from {saved} to {now}"
+    );
+    b.js("document.getElementById('save-frame').click()");
+    b.wait("return window.view.scene.timeline.frames[20].hand_set === true");
+    b.js("document.getElementById('retrack').click()");
+    b.wait("return document.getElementById('work-status').textContent.startsWith('re-tracked')");
+    let status = b.js("return document.getElementById('work-status').textContent");
+    assert!(
+        status.as_str().unwrap().contains("tracked 19 frames again"),
+        "{status}"
+    );
+    // The timeline shows the new frames: no longer flagged.
+    assert_eq!(
+        b.js("return window.view.scene.timeline.frames.slice(21).filter((f) => f.status !== 'ok').length"),
+        json!(0)
+    );
+
+    let written: TracksJson = serde_json::from_slice(&std::fs::read(&tracks).unwrap()).unwrap();
+    assert_eq!(written.frames.len(), 40);
+    let hand: Vec<u32> = written
+        .frames
+        .iter()
+        .filter(|r| r.hand_set)
+        .map(|r| r.frame)
+        .collect();
+    assert_eq!(hand, vec![20]);
+    let kept: TracksJson =
+        serde_json::from_slice(&std::fs::read(jawtrack::view::backup_path(&tracks)).unwrap())
+            .unwrap();
+    assert_eq!(
+        serde_json::to_value(&kept.frames[30]).unwrap(),
+        serde_json::to_value(&t.frames[30]).unwrap()
+    );
+    let after = jaw_errors(&capture, &tracks);
+    eprintln!(
+        "jaw error from frame 20 on: usual {:?}, lost {:?}, corrected {:?} ({status})",
+        usual[20..]
+            .iter()
+            .map(|e| (e.1 * 1e3).round() / 1e3)
+            .collect::<Vec<_>>(),
+        lost[20..]
+            .iter()
+            .map(|e| (e.1 * 1e3).round() / 1e3)
+            .collect::<Vec<_>>(),
+        after[20..]
+            .iter()
+            .map(|e| (e.1 * 1e3).round() / 1e3)
+            .collect::<Vec<_>>(),
+    );
+    for &(frame, e) in after.iter().filter(|e| e.0 >= 20) {
+        assert!(
+            e < usual_max + 0.15,
+            "frame {frame}: jaw {e:.3} mm after the correction; the run's worst was {usual_max:.3}"
+        );
+    }
+
+    // Stopped at once: the frames from where it stopped are as they were.
+    b.js("const s = document.getElementById('scrub'); s.value = 0; s.dispatchEvent(new Event('input'));");
+    b.js("document.getElementById('retrack').click()");
+    b.wait("return !document.getElementById('stop-retrack').disabled");
+    b.js("document.getElementById('stop-retrack').click()");
+    b.wait("return document.getElementById('work-status').textContent.startsWith('re-tracked')");
+    let status = b.js("return document.getElementById('work-status').textContent");
+    let status = status.as_str().unwrap();
+    let at: usize = status
+        .split("stopped at frame ")
+        .nth(1)
+        .and_then(|rest| rest.split(';').next())
+        .and_then(|n| n.parse().ok())
+        .unwrap_or_else(|| panic!("{status}"));
+    assert!(at < 20, "{status}");
+    let stopped: TracksJson = serde_json::from_slice(&std::fs::read(&tracks).unwrap()).unwrap();
+    assert_eq!(stopped.frames.len(), 40);
+    for k in at..40 {
+        assert_eq!(
+            serde_json::to_value(&stopped.frames[k]).unwrap(),
+            serde_json::to_value(&written.frames[k]).unwrap(),
+            "frame {k}"
+        );
+    }
+    assert!(!dir.path().join("tracks.retrack.json").exists());
+}
+
 /// The envelope rig on the same page: its sliders pose the jaw in the same units, inside
 /// Posselt's envelope (a pose beyond it comes as near as it can, then the protrusion band
 /// there is reached exactly), and a keyed animation exports as valid glTF.

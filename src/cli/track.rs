@@ -66,7 +66,7 @@ pub struct TrackingArgs {
     /// The subject's own rig (`rig learn`'s or `envelope learn`'s, learned from this capture's
     /// tracks): the jaw is held to its manifold and ranges, and its poses are the jaw prior's
     /// starts, in place of the average joint's.
-    #[arg(long)]
+    #[arg(long = "rig", id = "subject_rig")]
     pub rig: Option<PathBuf>,
 }
 
@@ -134,7 +134,7 @@ pub struct Args {
     /// Track, learn the subject's rig from the frames tracked `ok` (`rig learn`'s defaults),
     /// and track again held to it: OUTPUT's first pass and rig go beside it
     /// (NAME.pass1.json, NAME.rig.json).
-    #[arg(long, conflicts_with = "rig")]
+    #[arg(long, conflicts_with = "subject_rig")]
     pub two_pass: bool,
 }
 

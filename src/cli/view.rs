@@ -6,9 +6,12 @@ use std::path::PathBuf;
 
 use anyhow::{Context, bail};
 use jawtrack::capture::Capture;
-use jawtrack::view::{Meshes, Tracked, Viewer, serve};
+use std::sync::Arc;
+
+use jawtrack::view::{Meshes, Retracking, Viewer, Workbench, serve};
 
 use crate::cli::args::load_mesh;
+use crate::cli::track::TrackingArgs;
 
 #[derive(clap::Args)]
 pub struct Args {
@@ -18,6 +21,8 @@ pub struct Args {
     #[arg(long)]
     pub capture: Option<PathBuf>,
     /// The capture's tracks.json (with --capture): the timeline and each camera's overlay.
+    /// Frames corrected on the page, and those tracked again from them, are written back to
+    /// it (atomically; the file as first read is kept as NAME.before-view.json).
     #[arg(long, requires = "capture")]
     pub tracks: Option<PathBuf>,
     /// Without a capture: the upper arch (upper frame), drawn fixed.
@@ -35,6 +40,10 @@ pub struct Args {
     pub port: u16,
     #[arg(long, default_value_t = IpAddr::V4(Ipv4Addr::LOCALHOST))]
     pub host: IpAddr,
+    /// How frames are tracked again from a corrected one (as `track`'s options): give those
+    /// tracks.json was tracked with.
+    #[command(flatten, next_help_heading = "Tracking again")]
+    pub how: TrackingArgs,
 }
 
 pub fn run(a: Args) -> anyhow::Result<()> {
@@ -50,7 +59,7 @@ pub fn run(a: Args) -> anyhow::Result<()> {
                 dir,
                 jawtrack::capture::OpenOptions {
                     masks_to_come: true,
-                    ..Default::default()
+                    ..a.how.load.open_options()
                 },
             )
             .with_context(|| format!("invalid capture {}", dir.display()))?;
@@ -59,11 +68,25 @@ pub fn run(a: Args) -> anyhow::Result<()> {
                 lower: capture.lower().clone(),
                 mandible: mandible.or_else(|| capture.mandible().cloned()),
             };
+            let retracking = Retracking {
+                settings: a.how.settings()?,
+                backend: a.how.backend(),
+                region: a.how.region(),
+            };
             let tracked = a
                 .tracks
                 .as_deref()
-                .map(|t| Tracked::read(capture, t))
+                .map(|t| Workbench::open(capture, t, retracking).map(Arc::new))
                 .transpose()?;
+            if let (Some(t), true) = (
+                &a.tracks,
+                tracked.as_ref().is_some_and(|w| w.other_settings),
+            ) {
+                eprintln!(
+                    "note: {} was not tracked with these options (or not by this jawtrack): frames tracked again from the page use these",
+                    t.display()
+                );
+            }
             (meshes, tracked)
         }
         None => {

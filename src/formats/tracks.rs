@@ -52,6 +52,11 @@ pub struct FrameRecordJson {
     /// (`upper` and `lower` above), where a window applies.
     #[serde(default, skip_serializing_if = "Option::is_none")]
     pub tracked: Option<TrackedJson>,
+    /// jawtrack's addition, written by `view`'s workbench: the poses were set by hand on this
+    /// frame, not tracked. A run that goes on from such a frame starts from them, and the window
+    /// over frames holds them fixed.
+    #[serde(default, skip_serializing_if = "std::ops::Not::not")]
+    pub hand_set: bool,
 }
 
 /// A frame as tracked: its poses, and the information its masks gave about them (the 12x12

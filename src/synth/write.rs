@@ -195,6 +195,7 @@ fn write_ground_truth(dir: &Path, frames: &[FilmedFrame]) -> Result<()> {
             status: None,
             jaw_source: None,
             tracked: None,
+            hand_set: false,
         })
         .collect();
     write_json_atomic(

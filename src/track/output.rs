@@ -113,13 +113,7 @@ struct JournalHead {
 
 /// The record of a tracked frame, as the spec writes it.
 pub fn record(r: &FrameResult) -> FrameRecordJson {
-    let arch_energy = |e: &crate::energy::Energy| ArchEnergyJson {
-        boi_outside: e.boi_outside(),
-        cross: Some(e.cross()),
-        over_mouth: Some(e.over_mouth()),
-        total: e.total(crate::energy::DEFAULT_LAMBDA),
-        uncovered: e.uncovered(),
-    };
+    let arch_energy = energy_json;
     FrameRecordJson {
         frame: r.frame,
         upper: PoseJson::from(&r.poses.upper),
@@ -140,6 +134,18 @@ pub fn record(r: &FrameResult) -> FrameRecordJson {
             lower: PoseJson::from(&r.poses.lower),
             information: info.transpose().iter().copied().collect(),
         }),
+        hand_set: false,
+    }
+}
+
+/// An arch's energy terms as the record writes them.
+pub fn energy_json(e: &crate::energy::Energy) -> ArchEnergyJson {
+    ArchEnergyJson {
+        boi_outside: e.boi_outside(),
+        cross: Some(e.cross()),
+        over_mouth: Some(e.over_mouth()),
+        total: e.total(crate::energy::DEFAULT_LAMBDA),
+        uncovered: e.uncovered(),
     }
 }
 

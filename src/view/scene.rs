@@ -3,23 +3,23 @@
 //! dragged vertex, an animation as glTF, a camera's overlay) in the animator's units.
 
 use std::path::Path;
+use std::sync::Arc;
 use std::time::Instant;
 
 use nalgebra::Vector3;
 use serde::{Deserialize, Serialize};
 
 use crate::anatomy::motion::{Anatomical, MotionFrame};
-use crate::arch::ArchPoses;
-use crate::capture::Capture;
 use crate::error::{Error, Result};
 use crate::export::gltf::{self, write_gltf};
-use crate::formats::{Status, TracksJson};
 use crate::geometry::{Pose, jaw_pose};
 use crate::mesh::Mesh;
 use crate::rig::ThreeParameterRig;
 use crate::rig::animate::{Key, animate_animator};
 use crate::rig::three::{nearest_animator, solve_animator};
 use crate::track::overlay::{self, ArchColours};
+
+use super::workbench::{Draft, EditQuery, FrameQuery, JobReply, Workbench};
 
 /// The meshes the page draws: the upper arch fixed (upper frame), the lower arch and the
 /// mandible moved by the jaw pose (lower frame), all in mm.
@@ -29,44 +29,12 @@ pub struct Meshes {
     pub mandible: Option<Mesh>,
 }
 
-/// A tracked capture: its frames' poses, to scrub through with the overlays.
-pub struct Tracked {
-    pub capture: Capture,
-    pub frames: Vec<TrackedFrame>,
-}
-
-pub struct TrackedFrame {
-    pub frame: u32,
-    pub status: Status,
-    pub poses: ArchPoses,
-}
-
-impl Tracked {
-    /// The capture's tracks.json, every frame with poses (no-data frames hold the last pose).
-    pub fn read(capture: Capture, tracks: &Path) -> Result<Tracked> {
-        let json: TracksJson = crate::io::read_json(tracks, "tracks file")?;
-        let mut frames = Vec::with_capacity(json.frames.len());
-        for f in &json.frames {
-            frames.push(TrackedFrame {
-                frame: f.frame,
-                status: f.status(),
-                poses: f.poses(tracks)?,
-            });
-        }
-        frames.sort_by_key(|f| f.frame);
-        if frames.is_empty() {
-            return Err(Error::invalid(tracks, "frames", "no frame to show"));
-        }
-        Ok(Tracked { capture, frames })
-    }
-}
-
 /// The page's questions are answered here.
 pub struct Viewer {
     rig: Box<dyn ThreeParameterRig + Send + Sync>,
     motion: MotionFrame,
     pub meshes: Meshes,
-    tracked: Option<Tracked>,
+    tracked: Option<Arc<Workbench>>,
     extent: Extent,
     rest: [f64; 3],
     /// The largest |parameter| a query may start from: the training poses' span, widened.
@@ -188,14 +156,28 @@ pub struct SceneReply {
 pub struct Timeline {
     pub cameras: Vec<String>,
     pub frames: Vec<TimelineFrame>,
+    /// Changes whenever a frame does (a correction, a re-track's frame).
+    pub version: u64,
+    pub job: JobReply,
+    /// Where tracks.json as the page first read it is kept once the page changes it.
+    pub backup: String,
 }
 
 #[derive(Debug, Clone, Serialize)]
 pub struct TimelineFrame {
     pub frame: u32,
     pub status: &'static str,
+    pub hand_set: bool,
     pub animator: AnimatorJson,
     pub jaw: [f64; 16],
+}
+
+/// A frame moved by hand, with the jaw's animator values.
+#[derive(Debug, Clone, Serialize)]
+pub struct DraftReply {
+    #[serde(flatten)]
+    pub draft: Draft,
+    pub animator: AnimatorJson,
 }
 
 /// A question the page asked that has no answer: its message goes back as the reply.
@@ -203,7 +185,7 @@ pub struct TimelineFrame {
 #[error("{0}")]
 pub struct Refused(pub String);
 
-fn column_major(p: &Pose) -> [f64; 16] {
+pub(super) fn column_major(p: &Pose) -> [f64; 16] {
     let r = p.rotation.matrix();
     std::array::from_fn(|i| match (i % 4, i / 4) {
         (3, 3) => 1.0,
@@ -219,7 +201,7 @@ impl Viewer {
         rig: Box<dyn ThreeParameterRig + Send + Sync>,
         rig_path: &Path,
         meshes: Meshes,
-        tracked: Option<Tracked>,
+        tracked: Option<Arc<Workbench>>,
     ) -> Result<Viewer> {
         let motion = rig.motion_frame().ok_or_else(|| {
             Error::invalid(
@@ -302,27 +284,7 @@ impl Viewer {
             extent: self.extent.clone(),
             rest: self.reply(self.rest, true),
             meshes,
-            timeline: self.tracked.as_ref().map(|t| Timeline {
-                cameras: t
-                    .capture
-                    .camera_names()
-                    .into_iter()
-                    .map(String::from)
-                    .collect(),
-                frames: t
-                    .frames
-                    .iter()
-                    .map(|f| {
-                        let jaw = jaw_pose(&f.poses.upper, &f.poses.lower);
-                        TimelineFrame {
-                            frame: f.frame,
-                            status: f.status.as_str(),
-                            animator: self.motion.measure(&jaw).into(),
-                            jaw: column_major(&jaw),
-                        }
-                    })
-                    .collect(),
-            }),
+            timeline: self.timeline(),
         }
     }
 
@@ -445,43 +407,119 @@ impl Viewer {
         ))
     }
 
-    /// Camera `camera`'s picture of tracked frame `frame` with the models at its tracked
-    /// poses, the arches in distinct colours, as PNG.
+    /// Camera `camera`'s picture of tracked frame `frame` with the models at its poses (a
+    /// draft's where the frame is being moved), the arches in distinct colours, as PNG: the
+    /// region around the teeth as the frame's own poses place them.
     pub fn overlay(&self, camera: &str, frame: u32) -> std::result::Result<Vec<u8>, Refused> {
-        let t = self
-            .tracked
-            .as_ref()
-            .ok_or_else(|| Refused("no capture was given".into()))?;
+        let t = self.workbench()?;
         let k = t
             .capture
             .camera_names()
             .iter()
             .position(|c| *c == camera)
             .ok_or_else(|| Refused(format!("no camera {camera:?}")))?;
-        let f = t
-            .frames
-            .iter()
-            .find(|f| f.frame == frame)
+        let (poses, kept) = t
+            .overlay_poses(k, frame)
             .ok_or_else(|| Refused(format!("frame {frame} was not tracked")))?;
         let masks = t.capture.load_masks(frame).ok();
         let mask = masks.as_ref().and_then(|m| m.masks[k].as_ref());
         let (rgb, models) =
-            overlay::picture(&t.capture, k, frame, mask, &f.poses, ArchColours::Distinct)
+            overlay::picture(&t.capture, k, frame, mask, &poses, ArchColours::Distinct)
                 .map_err(|e| Refused(e.to_string()))?
                 .ok_or_else(|| Refused(format!("{camera}: the picture's size is not known")))?;
-        // The teeth fill a small part of the frame: show the region around them, at least a
-        // quarter of the frame's width, at the frame's aspect.
-        let Some([x0, y0, x1, y1]) = models else {
-            return Ok(overlay::png(&rgb));
+        let crop = match kept {
+            Some(c) => c,
+            None => {
+                // The teeth fill a small part of the frame: show the region around them, at
+                // least a quarter of the frame's width, at the frame's aspect.
+                let Some([x0, y0, x1, y1]) = models else {
+                    return Ok(overlay::png(&rgb));
+                };
+                let (w, h) = rgb.dimensions();
+                let size = (2 * (x1 - x0)).max(2 * (y1 - y0) * w / h).max(w / 4);
+                let cw = size.min(w);
+                let ch = (cw * h / w).min(h);
+                let cx = ((x0 + x1) / 2).saturating_sub(cw / 2).min(w - cw);
+                let cy = ((y0 + y1) / 2).saturating_sub(ch / 2).min(h - ch);
+                let crop = [cx, cy, cw, ch];
+                t.keep_crop(k, frame, crop);
+                crop
+            }
         };
-        let (w, h) = rgb.dimensions();
-        let size = (2 * (x1 - x0)).max(2 * (y1 - y0) * w / h).max(w / 4);
-        let cw = size.min(w);
-        let ch = (cw * h / w).min(h);
-        let cx = ((x0 + x1) / 2).saturating_sub(cw / 2).min(w - cw);
-        let cy = ((y0 + y1) / 2).saturating_sub(ch / 2).min(h - ch);
+        let [cx, cy, cw, ch] = crop;
         let crop = image::imageops::crop_imm(&rgb, cx, cy, cw, ch).to_image();
         Ok(overlay::png(&crop))
+    }
+
+    fn workbench(&self) -> std::result::Result<&Arc<Workbench>, Refused> {
+        self.tracked
+            .as_ref()
+            .ok_or_else(|| Refused("no capture was given".into()))
+    }
+
+    /// The tracked frames as they now are.
+    pub fn timeline(&self) -> Option<Timeline> {
+        let t = self.tracked.as_ref()?;
+        let (frames, version) = t.frames();
+        Some(Timeline {
+            cameras: t
+                .capture
+                .camera_names()
+                .into_iter()
+                .map(String::from)
+                .collect(),
+            frames: frames
+                .iter()
+                .map(|f| {
+                    let jaw = jaw_pose(&f.poses.upper, &f.poses.lower);
+                    TimelineFrame {
+                        frame: f.frame,
+                        status: f.status.as_str(),
+                        hand_set: f.hand_set,
+                        animator: self.motion.measure(&jaw).into(),
+                        jaw: column_major(&jaw),
+                    }
+                })
+                .collect(),
+            version,
+            job: t.job(),
+            backup: t.backup().display().to_string(),
+        })
+    }
+
+    fn draft(
+        &self,
+        d: std::result::Result<Draft, String>,
+    ) -> std::result::Result<DraftReply, Refused> {
+        let draft = d.map_err(Refused)?;
+        let jaw = draft.poses.jaw();
+        Ok(DraftReply {
+            animator: self.motion.measure(&jaw).into(),
+            draft,
+        })
+    }
+
+    /// Move an arch of a frame by hand.
+    pub fn edit(&self, q: &EditQuery) -> std::result::Result<DraftReply, Refused> {
+        self.draft(self.workbench()?.edit(q))
+    }
+
+    /// Save a frame's poses as hand-set.
+    pub fn correct(&self, q: &FrameQuery) -> std::result::Result<DraftReply, Refused> {
+        self.draft(self.workbench()?.correct(q.frame))
+    }
+
+    /// Track again after a frame, in the background.
+    pub fn retrack(&self, q: &FrameQuery) -> std::result::Result<JobReply, Refused> {
+        self.workbench()?.retrack(q.frame).map_err(Refused)
+    }
+
+    pub fn job(&self) -> std::result::Result<JobReply, Refused> {
+        Ok(self.workbench()?.job())
+    }
+
+    pub fn stop(&self) -> std::result::Result<JobReply, Refused> {
+        Ok(self.workbench()?.stop())
     }
 
     /// A mesh for WebGL: vertex and triangle counts (u32), positions (f32, mm), indices (u32),

@@ -390,6 +390,30 @@ fn answer(viewer: &Viewer, request: &Request, body: &[u8]) -> Reply {
             Ok(gltf) => bytes(200, "model/gltf+json", gltf),
             Err(e) => refused(400, &e.0),
         },
+        ("GET", "/api/timeline") => match viewer.timeline() {
+            Some(t) => json(&t),
+            None => refused(404, "no capture was given"),
+        },
+        ("POST", "/api/edit") => match question(body).and_then(|q| viewer.edit(&q)) {
+            Ok(r) => json(&r),
+            Err(e) => refused(400, &e.0),
+        },
+        ("POST", "/api/correct") => match question(body).and_then(|q| viewer.correct(&q)) {
+            Ok(r) => json(&r),
+            Err(e) => refused(400, &e.0),
+        },
+        ("POST", "/api/retrack") => match question(body).and_then(|q| viewer.retrack(&q)) {
+            Ok(r) => json(&r),
+            Err(e) => refused(400, &e.0),
+        },
+        ("GET", "/api/retrack") => match viewer.job() {
+            Ok(r) => json(&r),
+            Err(e) => refused(404, &e.0),
+        },
+        ("POST", "/api/retrack/stop") => match viewer.stop() {
+            Ok(r) => json(&r),
+            Err(e) => refused(404, &e.0),
+        },
         ("GET", path) if path.starts_with("/mesh/") => {
             let name = path["/mesh/".len()..].trim_end_matches(".bin");
             match viewer.mesh_bytes(name) {

@@ -555,6 +555,11 @@ function drawTimeline(tl, at, hover) {
     g.stroke();
   }
   g.lineWidth = 1;
+  g.fillStyle = "#66bb6a";
+  tl.frames.forEach((f, i) => {
+    if (!f.hand_set) return;
+    g.beginPath(); g.moveTo(G.x(i) - 5, G.y0); g.lineTo(G.x(i) + 5, G.y0); g.lineTo(G.x(i), G.y0 + 8); g.fill();
+  });
   g.strokeStyle = "#fff"; g.beginPath(); g.moveTo(G.x(at), G.y0); g.lineTo(G.x(at), G.y1); g.stroke();
   if (hover !== undefined && hover !== at) {
     g.setLineDash([3, 3]); g.strokeStyle = "#bbb";
@@ -565,7 +570,7 @@ function drawTimeline(tl, at, hover) {
 // What the timeline says of frame i, in words.
 function frameReadout(tl, i) {
   const f = tl.frames[i], a = f.animator;
-  return `frame ${f.frame} (${f.status}): opening ${a.opening_deg.toFixed(1)}°, lateral ${a.lateral_mm.toFixed(2)} mm, protrusion ${a.protrusion_mm.toFixed(2)} mm`;
+  return `frame ${f.frame} (${f.status}${f.hand_set ? ", hand-set" : ""}): opening ${a.opening_deg.toFixed(1)}°, lateral ${a.lateral_mm.toFixed(2)} mm, protrusion ${a.protrusion_mm.toFixed(2)} mm`;
 }
 function showFrame(tl, i) {
   const f = tl.frames[i];
@@ -574,8 +579,9 @@ function showFrame(tl, i) {
   state.outOfRange = false;
   const a = f.animator, values = [a.opening_deg, a.lateral_mm, a.protrusion_mm];
   NAMES.forEach((n, k) => { $(n).value = values[k]; $(`${n}-value`).textContent = `${values[k].toFixed(k ? 2 : 1)} ${UNITS[k]}`; });
-  $("frame-label").textContent = `frame ${f.frame} (${f.status}): the tracked pose; the overlays draw the upper arch red, the lower yellow, the boundary of interest green, the mask white`;
-  for (const cam of tl.cameras) $(`overlay-${cam}`).src = `/overlay/${encodeURIComponent(cam)}/${f.frame}.png`;
+  $("frame-label").textContent = `frame ${f.frame} (${f.status}${f.hand_set ? ", hand-set" : ""}): the tracked pose; the overlays draw the upper arch red, the lower yellow, the boundary of interest green, the mask white`;
+  showOverlays(tl, f.frame);
+  if (wb.draft && wb.draft.frame !== f.frame) { wb.draft = null; $("terms").innerHTML = ""; }
   $("timeline-readout").textContent = frameReadout(tl, i);
   drawTimeline(tl, i);
   draw();
@@ -606,9 +612,163 @@ function setupTimeline(tl) {
     $("timeline-readout").textContent = frameReadout(tl, Number(scrub.value));
     drawTimeline(tl, Number(scrub.value));
   });
-  for (const cam of tl.cameras) $(`overlay-${cam}`).src = `/overlay/${encodeURIComponent(cam)}/${tl.frames[0].frame}.png`;
+  showOverlays(tl, tl.frames[0].frame);
   $("timeline-readout").textContent = frameReadout(tl, 0);
   drawTimeline(tl, 0);
+  setupWorkbench(tl);
+}
+
+// ---- the workbench: a frame's arches moved by hand, saved, the frames after it tracked again ----
+const wb = { ops: [], busy: false, drag: null, draft: null, version: 0, shown: 0, polling: false };
+// Each camera's picture of `frame`; `shown` changes with every move so the browser asks again.
+function showOverlays(tl, frame) {
+  wb.shown++;
+  for (const cam of tl.cameras) $(`overlay-${cam}`).src = `/overlay/${encodeURIComponent(cam)}/${frame}.png?v=${wb.version}.${wb.shown}`;
+}
+function workStatus(text, bad) {
+  $("work-status").innerHTML = "";
+  const s = document.createElement("span");
+  if (bad) s.className = "bad";
+  s.textContent = text;
+  $("work-status").appendChild(s);
+}
+const editArch = () => document.querySelector("input[name=edit-arch]:checked").value;
+// Moves of one kind in one camera add up while a request is out: the server sees their sum.
+function queueEdit(tl, op) {
+  const last = wb.ops[wb.ops.length - 1];
+  if (last && last.kind === op.kind && last.camera === op.camera && last.arch === op.arch && op.kind !== "reset")
+    last.v = last.v.map((x, i) => x + op.v[i]);
+  else wb.ops.push(op);
+  if (!wb.busy) flushEdits(tl);
+}
+function opJson(op) {
+  switch (op.kind) {
+    case "drag": return { drag: { camera: op.camera, pixels: op.v } };
+    case "turn": return { turn: { camera: op.camera, degrees: op.v } };
+    case "depth": return { depth: { camera: op.camera, mm: op.v[0] } };
+    case "nudge": return { nudge: { mm: op.v.slice(0, 3), degrees: op.v.slice(3) } };
+    default: return "reset";
+  }
+}
+async function flushEdits(tl) {
+  wb.busy = true;
+  try {
+    while (wb.ops.length) {
+      const op = wb.ops.shift();
+      const d = await (await ask("/api/edit", { frame: view.trackedFrame, arch: op.arch, op: opJson(op) })).json();
+      showDraft(tl, d);
+    }
+  } catch (e) {
+    wb.ops = [];
+    workStatus(e.message, true);
+  }
+  wb.busy = false;
+}
+// A frame as moved: its energy's terms against the saved poses', the jaw in the 3-D view.
+function showDraft(tl, d) {
+  wb.draft = d;
+  const row = (name, key, digits) => `<tr><td>${name}</td>` + ["upper", "lower"].map((a) => {
+    const now = d.terms[a][key], was = d.saved[a][key];
+    return `<td>${now.toFixed(digits)}</td><td class="hint">${now === was ? "" : `was ${was.toFixed(digits)}`}</td>`;
+  }).join("") + "</tr>";
+  $("terms").innerHTML = `<tr><td>frame ${d.frame}${d.hand_set ? " (hand-set)" : ""}</td><td>upper</td><td></td><td>lower</td><td></td></tr>` +
+    row("uncovered mask (px)", "uncovered", 0) + row("boundary of interest outside (px)", "boi_outside", 0) +
+    row("over the other arch (px)", "cross", 0) + row("over the mouth interior (px)", "over_mouth", 0) +
+    row("paper's E", "paper", 1) + row("objective", "objective", 1) + row("area error (%)", "area_error_percent", 2);
+  state.jaw = Float64Array.from(d.jaw);
+  draw();
+  showOverlays(tl, d.frame);
+}
+async function refreshTimeline(tl) {
+  const t = await (await ask("/api/timeline")).json();
+  tl.frames = t.frames;
+  wb.version = t.version;
+  const i = Number($("scrub").value);
+  $("timeline-readout").textContent = frameReadout(tl, i);
+  drawTimeline(tl, i);
+  if (!wb.draft) showFrame(tl, i);
+  return t;
+}
+function showJob(j) {
+  $("retrack").disabled = j.running;
+  $("stop-retrack").disabled = !j.running;
+  if (j.from === null || j.from === undefined) return;
+  const first = j.first_frame_seconds === null ? "" : `; the first in ${j.first_frame_seconds.toFixed(2)} s`;
+  workStatus(`${j.running ? "re-tracking" : "re-tracked"} from frame ${j.from} up to ${j.until}: ${j.done} frames${j.last === null ? "" : ` (last ${j.last})`}${first}. ${j.message}`);
+}
+async function pollJob(tl) {
+  if (wb.polling) return;
+  wb.polling = true;
+  try {
+    for (;;) {
+      const j = await (await ask("/api/retrack")).json();
+      showJob(j);
+      if (j.version !== wb.version) await refreshTimeline(tl);
+      if (!j.running) break;
+      await new Promise((r) => setTimeout(r, 250));
+    }
+  } catch (e) {
+    workStatus(e.message, true);
+  }
+  wb.polling = false;
+}
+function setupWorkbench(tl) {
+  for (const cam of tl.cameras) {
+    const img = $(`overlay-${cam}`);
+    img.draggable = false;
+    img.addEventListener("mousedown", (e) => {
+      e.preventDefault();
+      wb.drag = { cam, img, x: e.clientX, y: e.clientY };
+    });
+    img.addEventListener("wheel", (e) => {
+      e.preventDefault();
+      queueEdit(tl, { kind: "depth", arch: editArch(), camera: cam, v: [0.1 * Math.sign(e.deltaY)] });
+    }, { passive: false });
+  }
+  window.addEventListener("mousemove", (e) => {
+    const d = wb.drag;
+    if (!d) return;
+    // Pointer pixels to the picture's own (the masks'), which the server moves the arch by.
+    const s = d.img.naturalWidth / d.img.clientWidth;
+    const dx = (e.clientX - d.x) * s, dy = (e.clientY - d.y) * s;
+    d.x = e.clientX; d.y = e.clientY;
+    if (dx === 0 && dy === 0) return;
+    if (e.shiftKey) queueEdit(tl, { kind: "turn", arch: editArch(), camera: d.cam, v: [0.25 * dx, 0.25 * dy] });
+    else queueEdit(tl, { kind: "drag", arch: editArch(), camera: d.cam, v: [dx, dy] });
+  });
+  window.addEventListener("mouseup", () => { wb.drag = null; });
+  // Keys move the arch along its own axes (x left-right, y up-down, z front-back).
+  const KEYS = { ArrowLeft: [0, -1], ArrowRight: [0, 1], ArrowUp: [1, 1], ArrowDown: [1, -1], PageUp: [2, 1], PageDown: [2, -1] };
+  window.addEventListener("keydown", (e) => {
+    const k = KEYS[e.key];
+    if (!k || $("track").hidden || ["INPUT", "TEXTAREA", "SELECT"].includes(document.activeElement.tagName) && document.activeElement.type !== "radio") return;
+    e.preventDefault();
+    const v = [0, 0, 0, 0, 0, 0];
+    if (e.shiftKey) v[3 + [1, 0, 2][k[0]]] = 0.25 * k[1]; else v[k[0]] = 0.1 * k[1];
+    queueEdit(tl, { kind: "nudge", arch: editArch(), v });
+  });
+  $("reset-frame").addEventListener("click", () => queueEdit(tl, { kind: "reset", arch: editArch(), v: [] }));
+  $("save-frame").addEventListener("click", async () => {
+    try {
+      while (wb.busy) await new Promise((r) => setTimeout(r, 20));
+      const d = await (await ask("/api/correct", { frame: view.trackedFrame })).json();
+      showDraft(tl, d);
+      await refreshTimeline(tl);
+      workStatus(`frame ${d.frame} saved as hand-set in tracks.json (the file as first read: ${view.scene.timeline.backup})`);
+    } catch (e) { workStatus(e.message, true); }
+  });
+  $("retrack").addEventListener("click", async () => {
+    try {
+      showJob(await (await ask("/api/retrack", { frame: view.trackedFrame })).json());
+      wb.draft = null;
+      pollJob(tl);
+    } catch (e) { workStatus(e.message, true); }
+  });
+  $("stop-retrack").addEventListener("click", async () => {
+    try { showJob(await (await ask("/api/retrack/stop", {})).json()); } catch (e) { workStatus(e.message, true); }
+  });
+  showJob(tl.job);
+  if (tl.job.running) pollJob(tl);
 }
 
 // ---- start ----
@@ -668,6 +828,8 @@ Object.assign(view, {
   jaw: () => Array.from(state.jaw),
   poseFor: (target) => poseFor(target, true),
   idle: () => !inFlight && !waiting,
+  workIdle: () => !wb.busy && !wb.polling && wb.ops.length === 0,
+  draft: () => wb.draft,
 });
 // `?bench=N`: sweep the opening slider N times as a user would, then write the page's frame
 // times into <pre id="bench"> (benches/view.sh reads it).
