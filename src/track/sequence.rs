@@ -73,14 +73,14 @@ pub fn starts(state: &TrackState) -> Vec<ArchPoses> {
     starts
 }
 
-/// Track `frames` (in order), starting from `state`, with the masks of the capture's files
-/// or, given a `source`, its; `on_frame` receives every frame with its masks (for overlays,
-/// without reading them again).
+/// Track `frames` in the order given (backwards too, from a frame set by hand), starting from
+/// `state`, with the masks of the capture's files or, given a `source`, its; `on_frame`
+/// receives every frame with its masks (for overlays, without reading them again).
 pub fn track_frames(
     capture: &Capture,
     engine: &mut dyn EnergyEngine,
     settings: &TrackSettings,
-    frames: std::ops::Range<u32>,
+    frames: &[u32],
     state: &mut TrackState,
     source: Option<&mut dyn MaskSource>,
     on_frame: &mut dyn FnMut(&FrameResult, &FrameMasks) -> Result<()>,
@@ -155,7 +155,7 @@ pub fn track_frames(
         on_frame(&result, &masks)
     };
     if let Some(source) = source {
-        for frame in frames {
+        for &frame in frames {
             let started = Instant::now();
             let masks = source.frame_masks(frame, &starts(state))?;
             step(frame, masks, started, state)?;
@@ -164,9 +164,8 @@ pub fn track_frames(
     }
     std::thread::scope(|scope| {
         let (tx, rx) = sync_channel::<(u32, Result<FrameMasks>)>(2);
-        let reader_frames = frames.clone();
         scope.spawn(move || {
-            for f in reader_frames {
+            for &f in frames {
                 if tx.send((f, capture.load_masks(f))).is_err() {
                     break; // the tracker stopped
                 }

@@ -195,7 +195,7 @@ impl<'c> Session<'c> {
             capture,
             self.engine.as_mut(),
             &self.options.settings,
-            self.todo.clone(),
+            &self.todo.clone().collect::<Vec<u32>>(),
             &mut self.state,
             source,
             &mut |r, masks| {

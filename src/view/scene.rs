@@ -19,7 +19,7 @@ use crate::rig::animate::{Key, animate_animator};
 use crate::rig::three::{nearest_animator, solve_animator};
 use crate::track::overlay::{self, ArchColours};
 
-use super::workbench::{Draft, EditQuery, FrameQuery, JobReply, Workbench};
+use super::workbench::{Draft, EditQuery, FrameQuery, JobReply, RetrackQuery, Workbench};
 
 /// The meshes the page draws: the upper arch fixed (upper frame), the lower arch and the
 /// mandible moved by the jaw pose (lower frame), all in mm.
@@ -510,8 +510,8 @@ impl Viewer {
     }
 
     /// Track again after a frame, in the background.
-    pub fn retrack(&self, q: &FrameQuery) -> std::result::Result<JobReply, Refused> {
-        self.workbench()?.retrack(q.frame).map_err(Refused)
+    pub fn retrack(&self, q: &RetrackQuery) -> std::result::Result<JobReply, Refused> {
+        self.workbench()?.retrack(q).map_err(Refused)
     }
 
     pub fn job(&self) -> std::result::Result<JobReply, Refused> {

@@ -10,6 +10,7 @@
 //! is lost.
 
 use std::collections::HashMap;
+use std::ops::Range;
 use std::path::{Path, PathBuf};
 use std::sync::atomic::{AtomicBool, Ordering};
 use std::sync::{Arc, Mutex, MutexGuard};
@@ -21,14 +22,19 @@ use serde::{Deserialize, Serialize};
 use crate::arch::{Arch, ArchPoses};
 use crate::capture::{Capture, FrameMasks};
 use crate::energy::cpu::CpuEnergy;
+use crate::energy::open_engine;
 use crate::energy::{Backend, Energy, EnergyEngine, Region, Scene};
 use crate::error::{Error, Result};
 use crate::formats::{FrameRecordJson, PerArchJson, PoseJson, Status, TRACKS_FORMAT, TracksJson};
 use crate::geometry::{Camera, Pose};
 use crate::io::write_json_atomic;
-use crate::track::output::{TracksWriter, energy_json, journal_path};
+use crate::track::output::{
+    SettledFrames, TracksWriter, as_tracked, energy_json, journal_path, record,
+};
 use crate::track::session::fingerprint;
-use crate::track::{MaskSource, Session, SessionOptions, TrackSettings};
+use crate::track::{
+    FrameResult, MaskSource, Session, SessionOptions, TrackSettings, TrackState, track_frames,
+};
 
 use super::scene::column_major;
 
@@ -88,7 +94,9 @@ struct Frames {
 #[derive(Debug, Clone, Default, Serialize)]
 pub struct JobReply {
     pub running: bool,
-    /// The corrected frame it went on from, and the first frame it leaves as it was.
+    pub backward: bool,
+    /// The corrected frame it went on from, and the frame it goes to: the first it leaves as
+    /// it was going forward, the last it tracks going back.
     pub from: Option<u32>,
     pub until: Option<u32>,
     pub done: usize,
@@ -135,6 +143,15 @@ pub struct EditQuery {
 #[serde(deny_unknown_fields)]
 pub struct FrameQuery {
     pub frame: u32,
+}
+
+#[derive(Debug, Clone, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct RetrackQuery {
+    pub frame: u32,
+    /// Track the frames before it instead, nearest first (where the run was lost before it).
+    #[serde(default)]
+    pub backward: bool,
 }
 
 /// An arch's energy terms at a pose, for the page.
@@ -334,8 +351,10 @@ impl Workbench {
     }
 
     /// Track the frames after `frame` again, from its poses, up to the next hand-set frame
-    /// (or the capture's end), in the background.
-    pub fn retrack(self: &Arc<Self>, frame: u32) -> Result<JobReply, String> {
+    /// (or the capture's end); or, `backward`, those before it down to the previous hand-set
+    /// frame (or the capture's start). In the background.
+    pub fn retrack(self: &Arc<Self>, q: &RetrackQuery) -> Result<JobReply, String> {
+        let frame = q.frame;
         let mut job = lock(&self.job);
         if job.running {
             return Err("a re-track is running: stop it first".into());
@@ -349,20 +368,36 @@ impl Workbench {
                 "frame {frame} has unsaved moves: save it (or reset it) first"
             ));
         }
-        let until = f.records[i + 1..]
-            .iter()
-            .find(|r| r.hand_set)
-            .map_or(self.capture.frames().end, |r| r.frame);
-        if frame + 1 >= until {
+        let all = self.capture.frames();
+        let (until, todo) = if q.backward {
+            let since = f.records[..i]
+                .iter()
+                .rev()
+                .find(|r| r.hand_set)
+                .map_or(all.start, |r| r.frame + 1);
+            (since, since..frame)
+        } else {
+            let until = f.records[i + 1..]
+                .iter()
+                .find(|r| r.hand_set)
+                .map_or(all.end, |r| r.frame);
+            (until, frame + 1..until)
+        };
+        if todo.is_empty() {
             return Err(format!(
-                "no frame to track between frame {frame} and the next hand-set one or the end"
+                "no frame to track {} frame {frame} before the {} hand-set frame or the {}",
+                if q.backward { "before" } else { "after" },
+                if q.backward { "previous" } else { "next" },
+                if q.backward { "start" } else { "end" },
             ));
         }
         let kept = f.records[..=i].to_vec();
+        let corrected = f.shown[i].poses;
         drop(f);
         self.stop.store(false, Ordering::SeqCst);
         *job = JobReply {
             running: true,
+            backward: q.backward,
             from: Some(frame),
             until: Some(until),
             message: if self.other_settings {
@@ -373,12 +408,16 @@ impl Workbench {
             },
             ..JobReply::default()
         };
-        let reply = job.clone();
         drop(job);
         let me = Arc::clone(self);
+        let backward = q.backward;
         std::thread::spawn(move || {
             let started = Instant::now();
-            let outcome = me.run_retrack(kept, until, started);
+            let outcome = if backward {
+                me.run_backward(frame, corrected, todo, started)
+            } else {
+                me.run_forward(kept, until, started)
+            };
             let mut job = lock(&me.job);
             job.running = false;
             job.message = match outcome {
@@ -388,9 +427,8 @@ impl Workbench {
                 }
                 Err(e) => format!("failed: {e}"),
             };
-            job.version = lock(&me.frames).version;
         });
-        Ok(reply)
+        Ok(self.job())
     }
 
     /// Ask a running re-track to stop after the frame it is on.
@@ -417,8 +455,8 @@ impl Workbench {
         Ok(())
     }
 
-    /// The re-track itself; `Some(frame)` where it was stopped before `frame`.
-    fn run_retrack(
+    /// A re-track forward; `Some(frame)` where it was stopped before `frame`.
+    fn run_forward(
         &self,
         kept: Vec<FrameRecordJson>,
         until: u32,
@@ -447,26 +485,7 @@ impl Workbench {
             capture: &self.capture,
             stop: &self.stop,
         };
-        let outcome = session.run_with(Some(&mut source), &mut |r| {
-            let mut f = lock(&self.frames);
-            if let Some(i) = f.index(r.frame) {
-                f.shown[i] = TrackedFrame {
-                    frame: r.frame,
-                    status: r.status,
-                    hand_set: false,
-                    poses: r.poses,
-                };
-                f.drafts.remove(&r.frame);
-                f.crops.retain(|&(_, frame), _| frame != r.frame);
-            }
-            f.version += 1;
-            drop(f);
-            let mut job = lock(&self.job);
-            job.done += 1;
-            job.last = Some(r.frame);
-            job.first_frame_seconds
-                .get_or_insert(started.elapsed().as_secs_f64());
-        });
+        let outcome = session.run_with(Some(&mut source), &mut |r| self.tracked(r, started));
         let (records, stopped) = match outcome {
             Ok(summary) => (summary.records, None),
             Err(Error::Stopped { frame }) => {
@@ -501,6 +520,111 @@ impl Workbench {
         drop(f);
         self.remove_scratch(&scratch);
         Ok(stopped)
+    }
+
+    /// A re-track backward over `todo` (nearest `frame` first) from its `corrected` poses;
+    /// `Some(frame)` where it was stopped before `frame`. Its frames take the old ones' place
+    /// and every frame is settled again by the window, as one run's would be.
+    fn run_backward(
+        &self,
+        frame: u32,
+        corrected: ArchPoses,
+        todo: Range<u32>,
+        started: Instant,
+    ) -> Result<Option<u32>> {
+        let settings = &self.retracking.settings;
+        let energies = self.energies(frame, &corrected)?;
+        let start = match self.capture.init() {
+            Some(_) => self.capture.initial_poses()?,
+            None => corrected,
+        };
+        // The jaw prior is the run's (centred on its first pose); tracking goes on from the
+        // corrected frame, with no velocity yet.
+        let mut state = TrackState::new(start);
+        state.advance(
+            Status::Ok,
+            corrected,
+            energies[0].area_error().max(energies[1].area_error()),
+            settings.confidence_window,
+        );
+        state.before = None;
+        let mut engine = open_engine(
+            self.retracking.backend,
+            Scene::from_capture(&self.capture),
+            self.retracking.region,
+        )?
+        .engine;
+        let frames: Vec<u32> = todo.rev().collect();
+        let mut source = Stoppable {
+            capture: &self.capture,
+            stop: &self.stop,
+        };
+        let mut new = Vec::new();
+        let outcome = track_frames(
+            &self.capture,
+            engine.as_mut(),
+            settings,
+            &frames,
+            &mut state,
+            Some(&mut source),
+            &mut |r, _| {
+                new.push(record(r));
+                self.tracked(r, started);
+                Ok(())
+            },
+        );
+        let stopped = match outcome {
+            Ok(()) => None,
+            Err(Error::Stopped { frame }) => Some(frame),
+            Err(e) => return Err(e),
+        };
+        let mut f = lock(&self.frames);
+        let replaced: std::collections::HashSet<u32> = new.iter().map(|r| r.frame).collect();
+        let mut all: Vec<FrameRecordJson> = f
+            .records
+            .iter()
+            .filter(|r| !replaced.contains(&r.frame))
+            .cloned()
+            .chain(new)
+            .collect();
+        all.sort_by_key(|r| r.frame);
+        let mut settled = SettledFrames::new(&settings.window);
+        for r in all {
+            let (r, e) = as_tracked(&self.tracks, r)?;
+            settled.push(r, e);
+        }
+        settled.settle(true);
+        self.write(&mut f, settled.output(), Some(self.fingerprint.clone()))?;
+        f.shown = f
+            .records
+            .iter()
+            .map(|r| shown(&self.tracks, r))
+            .collect::<Result<Vec<_>>>()?;
+        f.crops.clear();
+        f.version += 1;
+        Ok(stopped)
+    }
+
+    /// A re-track's frame `r` is shown as it comes.
+    fn tracked(&self, r: &FrameResult, started: Instant) {
+        let mut f = lock(&self.frames);
+        if let Some(i) = f.index(r.frame) {
+            f.shown[i] = TrackedFrame {
+                frame: r.frame,
+                status: r.status,
+                hand_set: false,
+                poses: r.poses,
+            };
+            f.drafts.remove(&r.frame);
+            f.crops.retain(|&(_, frame), _| frame != r.frame);
+        }
+        f.version += 1;
+        drop(f);
+        let mut job = lock(&self.job);
+        job.done += 1;
+        job.last = Some(r.frame);
+        job.first_frame_seconds
+            .get_or_insert(started.elapsed().as_secs_f64());
     }
 
     fn remove_scratch(&self, scratch: &Path) {
@@ -735,6 +859,100 @@ mod tests {
         )
         .unwrap();
         (dir, w)
+    }
+
+    /// The lower arch lost on frames 0..6 (3 mm off, flagged), frame 6 set right by hand and
+    /// the frames before it tracked backwards from there: they come back to the truth, and the
+    /// frames after it are as they were.
+    #[test]
+    fn a_run_lost_before_a_corrected_frame_is_tracked_backwards() {
+        let dir = tempfile::tempdir().unwrap();
+        let cap = dir.path().join("cap");
+        generate(
+            &cap,
+            &SynthOptions {
+                frames: 10,
+                ..SynthOptions::default()
+            },
+            &|| {},
+        )
+        .unwrap();
+        let capture = Capture::open(&cap).unwrap();
+        let mut settings = TrackSettings::default();
+        settings.search.solver = crate::track::Solver::GaussNewton;
+        let tracks = dir.path().join("tracks.json");
+        let options = SessionOptions {
+            backend: Backend::Cpu,
+            settings: settings.clone(),
+            ..SessionOptions::new(&tracks)
+        };
+        let mut t = TracksJson {
+            format: TRACKS_FORMAT.into(),
+            fingerprint: None,
+            frames: Session::open(&capture, options)
+                .unwrap()
+                .run(&mut |_| {})
+                .unwrap()
+                .records,
+        };
+        let after = t.frames[7].clone();
+        for r in &mut t.frames[..6] {
+            let mut lower = r.poses(&tracks).unwrap().lower;
+            lower.translation.x += 3.0;
+            r.lower = PoseJson::from(&lower);
+            r.tracked = None;
+            r.status = Some(Status::LowConfidence);
+        }
+        write_json_atomic(&tracks, &t).unwrap();
+        let gt: Vec<ArchPoses> = (0..10).map(|f| capture.gt_poses(f).unwrap()).collect();
+        let truth = |frame: u32| gt[frame as usize];
+        let w = Arc::new(
+            Workbench::open(
+                capture,
+                &tracks,
+                Retracking {
+                    settings,
+                    backend: Backend::Cpu,
+                    region: Region::Relevant,
+                },
+            )
+            .unwrap(),
+        );
+        lock(&w.frames).drafts.insert(6, truth(6));
+        w.correct(6).unwrap();
+        let job = w
+            .retrack(&RetrackQuery {
+                frame: 6,
+                backward: true,
+            })
+            .unwrap();
+        assert!(
+            job.running && job.backward && job.until == Some(0),
+            "{job:?}"
+        );
+        while w.job().running {
+            std::thread::sleep(std::time::Duration::from_millis(20));
+        }
+        let job = w.job();
+        assert_eq!(job.done, 6, "{job:?}");
+        let written: TracksJson = crate::io::read_json(&tracks, "tracks").unwrap();
+        assert_eq!(written.frames.len(), 10);
+        assert!(written.frames[6].hand_set);
+        for r in &written.frames[..6] {
+            let p = r.poses(&tracks).unwrap();
+            let off = (p.lower.translation - truth(r.frame).lower.translation).norm();
+            assert!(
+                off < 0.5,
+                "frame {}: lower {off:.2} mm from the truth",
+                r.frame
+            );
+        }
+        // The window settles frame 7 again beside its new neighbours; its tracked poses stay.
+        assert_eq!(
+            serde_json::to_value(&written.frames[7].tracked).unwrap(),
+            serde_json::to_value(&after.tracked).unwrap()
+        );
+        assert!(!journal_path(&tracks).exists());
     }
 
     fn edit(w: &Workbench, arch: ArchName, op: EditOp) -> ArchPoses {

@@ -690,11 +690,12 @@ async function refreshTimeline(tl) {
   return t;
 }
 function showJob(j) {
-  $("retrack").disabled = j.running;
+  $("retrack").disabled = $("retrack-back").disabled = j.running;
   $("stop-retrack").disabled = !j.running;
   if (j.from === null || j.from === undefined) return;
   const first = j.first_frame_seconds === null ? "" : `; the first in ${j.first_frame_seconds.toFixed(2)} s`;
-  workStatus(`${j.running ? "re-tracking" : "re-tracked"} from frame ${j.from} up to ${j.until}: ${j.done} frames${j.last === null ? "" : ` (last ${j.last})`}${first}. ${j.message}`);
+  const way = j.backward ? `backwards from frame ${j.from} down to ${j.until}` : `from frame ${j.from} up to ${j.until}`;
+  workStatus(`${j.running ? "re-tracking" : "re-tracked"} ${way}: ${j.done} frames${j.last === null ? "" : ` (last ${j.last})`}${first}. ${j.message}`);
 }
 async function pollJob(tl) {
   if (wb.polling) return;
@@ -757,13 +758,15 @@ function setupWorkbench(tl) {
       workStatus(`frame ${d.frame} saved as hand-set in tracks.json (the file as first read: ${view.scene.timeline.backup})`);
     } catch (e) { workStatus(e.message, true); }
   });
-  $("retrack").addEventListener("click", async () => {
+  const retrack = async (backward) => {
     try {
-      showJob(await (await ask("/api/retrack", { frame: view.trackedFrame })).json());
+      showJob(await (await ask("/api/retrack", { frame: view.trackedFrame, backward })).json());
       wb.draft = null;
       pollJob(tl);
     } catch (e) { workStatus(e.message, true); }
-  });
+  };
+  $("retrack").addEventListener("click", () => retrack(false));
+  $("retrack-back").addEventListener("click", () => retrack(true));
   $("stop-retrack").addEventListener("click", async () => {
     try { showJob(await (await ask("/api/retrack/stop", {})).json()); } catch (e) { workStatus(e.message, true); }
   });
