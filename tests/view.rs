@@ -50,7 +50,8 @@ fn f64s(v: &Value) -> Vec<f64> {
 
 /// The page loads with no host but this one reachable, and every resource came from it;
 /// moving the opening slider moves the jaw: the pictures differ inside the moving meshes'
-/// screen box (before and after) and are the same everywhere else.
+/// screen box (before and after) and are the same everywhere else. While it moves, coarse
+/// meshes (the same vertices, fewer triangles) are drawn into fewer pixels.
 #[test]
 fn the_page_loads_offline_and_the_opening_slider_moves_only_the_jaw() {
     if !have_browser() {
@@ -80,10 +81,21 @@ fn the_page_loads_offline_and_the_opening_slider_moves_only_the_jaw() {
     let before_box = f64s(&b.js(moving_box));
     let before = b.canvas_shot();
     let redraws = b.js("return window.view.redraws.length").as_u64().unwrap();
-    b.js("const s = document.getElementById('opening'); s.value = 20; s.dispatchEvent(new Event('input'));");
+    // While the slider moves the page draws the coarse meshes into half the pixels each way,
+    // and the full picture once it rests.
+    let moving = b.js("const s = document.getElementById('opening'); s.value = 20; s.dispatchEvent(new Event('input')); const c = document.getElementById('gl'); return [c.width, c.height]");
+    assert_eq!(moving, json!([380, 280]));
     b.wait(&format!(
         "return window.view.redraws.length > {redraws} && window.view.idle()"
     ));
+    assert_eq!(
+        b.js("const c = document.getElementById('gl'); return [c.width, c.height]"),
+        json!([760, 560])
+    );
+    let counts = b.js("return Promise.all(['lower', 'lower.coarse'].map(async (n) => Array.from(new Uint32Array(await (await fetch(`/mesh/${n}.bin`)).arrayBuffer(), 0, 2))))");
+    let (full, coarse) = (f64s(&counts[0]), f64s(&counts[1]));
+    assert_eq!(full[0], coarse[0], "the same vertices: {counts}");
+    assert!(coarse[1] <= 3000.0 && coarse[1] < full[1] / 2.0, "{counts}");
     let opening = b
         .js("return window.view.reply.animator.opening_deg")
         .as_f64()

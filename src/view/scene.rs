@@ -13,7 +13,7 @@ use crate::anatomy::motion::{Anatomical, MotionFrame};
 use crate::error::{Error, Result};
 use crate::export::gltf::{self, write_gltf};
 use crate::geometry::{Pose, jaw_pose};
-use crate::mesh::Mesh;
+use crate::mesh::{Mesh, Simplify};
 use crate::rig::ThreeParameterRig;
 use crate::rig::animate::{Key, animate_animator};
 use crate::rig::three::{nearest_animator, solve_animator};
@@ -29,11 +29,17 @@ pub struct Meshes {
     pub mandible: Option<Mesh>,
 }
 
+/// Triangles of a mesh drawn while a slider, a drag or the orbit moves: software WebGL's
+/// vertex work is most of a frame, and the full mesh is drawn once the motion rests.
+pub const COARSE_TRIANGLES: usize = 2500;
+
 /// The page's questions are answered here.
 pub struct Viewer {
     rig: Box<dyn ThreeParameterRig + Send + Sync>,
     motion: MotionFrame,
     pub meshes: Meshes,
+    /// Each mesh with fewer triangles over the same vertices, drawn while anything moves.
+    coarse: Meshes,
     tracked: Option<Arc<Workbench>>,
     extent: Extent,
     rest: [f64; 3],
@@ -236,10 +242,17 @@ impl Viewer {
                 .chain([&rest])
                 .flatten()
                 .fold(1.0f64, |m, v| m.max(v.abs()));
+        let coarse = |m: &Mesh| m.simplified(Simplify::MaxTriangles(COARSE_TRIANGLES));
+        let coarse = Meshes {
+            upper: meshes.upper.as_ref().map(coarse),
+            lower: coarse(&meshes.lower),
+            mandible: meshes.mandible.as_ref().map(coarse),
+        };
         Ok(Viewer {
             rig,
             motion,
             meshes,
+            coarse,
             tracked,
             extent,
             rest,
@@ -523,12 +536,17 @@ impl Viewer {
     }
 
     /// A mesh for WebGL: vertex and triangle counts (u32), positions (f32, mm), indices (u32),
-    /// little-endian.
+    /// little-endian. `NAME.coarse`: the same vertices, the triangles drawn while anything
+    /// moves.
     pub fn mesh_bytes(&self, name: &str) -> Option<Vec<u8>> {
+        let (name, meshes) = match name.strip_suffix(".coarse") {
+            Some(name) => (name, &self.coarse),
+            None => (name, &self.meshes),
+        };
         let m = match name {
-            "upper" => self.meshes.upper.as_ref()?,
-            "lower" => &self.meshes.lower,
-            "mandible" => self.meshes.mandible.as_ref()?,
+            "upper" => meshes.upper.as_ref()?,
+            "lower" => &meshes.lower,
+            "mandible" => meshes.mandible.as_ref()?,
             _ => return None,
         };
         let mut out = Vec::with_capacity(8 + 12 * m.positions.len() + 12 * m.triangles.len());

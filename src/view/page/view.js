@@ -132,30 +132,46 @@ async function loadMesh(name) {
     const f = cross(e1, e2);
     for (const v of [a, b, c]) for (let k = 0; k < 3; k++) normals[3 * v + k] += f[k];
   }
-  const m = { name, positions, normals, indices, count: nt * 3, vao: null };
+  // The same vertices with fewer triangles, drawn while anything moves.
+  const cbuf = await (await ask(`/mesh/${name}.coarse.bin`)).arrayBuffer();
+  const [cnv, cnt] = new Uint32Array(cbuf, 0, 2);
+  const coarse = new Uint32Array(cbuf, 8 + cnv * 12, cnt * 3);
+  const m = { name, positions, normals, indices, count: nt * 3, vao: null, coarse, coarseCount: cnt * 3, coarseVao: null };
   upload(m);
   return m;
 }
 // The mesh's buffers on the GPU (again after a lost context).
 function upload(m) {
-  m.vao = gl.createVertexArray();
-  gl.bindVertexArray(m.vao);
-  for (const [loc, data] of [[0, m.positions], [1, m.normals]]) {
+  const attributes = [[0, m.positions], [1, m.normals]].map(([loc, data]) => {
     const b = gl.createBuffer();
     gl.bindBuffer(gl.ARRAY_BUFFER, b);
     gl.bufferData(gl.ARRAY_BUFFER, data, gl.STATIC_DRAW);
-    gl.enableVertexAttribArray(loc);
-    gl.vertexAttribPointer(loc, 3, gl.FLOAT, false, 0, 0);
-  }
-  const ib = gl.createBuffer();
-  gl.bindBuffer(gl.ELEMENT_ARRAY_BUFFER, ib);
-  gl.bufferData(gl.ELEMENT_ARRAY_BUFFER, m.indices, gl.STATIC_DRAW);
-  gl.bindVertexArray(null);
+    return [loc, b];
+  });
+  // One vertex array per set of triangles, over the same vertex buffers.
+  const vao = (indices) => {
+    const v = gl.createVertexArray();
+    gl.bindVertexArray(v);
+    for (const [loc, b] of attributes) {
+      gl.bindBuffer(gl.ARRAY_BUFFER, b);
+      gl.enableVertexAttribArray(loc);
+      gl.vertexAttribPointer(loc, 3, gl.FLOAT, false, 0, 0);
+    }
+    const ib = gl.createBuffer();
+    gl.bindBuffer(gl.ELEMENT_ARRAY_BUFFER, ib);
+    gl.bufferData(gl.ELEMENT_ARRAY_BUFFER, indices, gl.STATIC_DRAW);
+    gl.bindVertexArray(null);
+    return v;
+  };
+  m.vao = vao(m.indices);
+  m.coarseVao = vao(m.coarse);
 }
 
 // ---- the scene ----
 const state = {
   meshes: {},
+  // Something moves (a slider, a drag, the orbit, playback): the coarse meshes are drawn.
+  moving: false,
   jaw: IDENTITY,
   outOfRange: false,
   orbit: { yaw: 0.35, pitch: 0.15, dist: 120, target: [0, 0, 0] },
@@ -175,6 +191,26 @@ function camera() {
   state.viewProj = mul(perspective(0.6, canvas.width / canvas.height, 1, 2000), lookAt(eye, o.target, [0, 1, 0]));
 }
 
+// Motion draws the coarse meshes into half the pixels each way (the browser scales the picture
+// up): software WebGL's time goes to vertices and pixels alike. The full meshes at the full
+// size come back once nothing has moved for REST_MS.
+const REST_MS = 150, MOVING_SCALE = 0.5;
+let restTimer = null, restSize = null;
+function moved() {
+  if (!state.moving) {
+    restSize = [canvas.width, canvas.height];
+    canvas.width = Math.round(restSize[0] * MOVING_SCALE);
+    canvas.height = Math.round(restSize[1] * MOVING_SCALE);
+  }
+  state.moving = true;
+  clearTimeout(restTimer);
+  restTimer = setTimeout(() => {
+    restTimer = null;
+    state.moving = false;
+    [canvas.width, canvas.height] = restSize;
+    draw();
+  }, REST_MS);
+}
 const onePixel = new Uint8Array(4);
 // Draw, wait for the picture to be done (software GL draws asynchronously), return the ms.
 function draw() {
@@ -194,8 +230,8 @@ function draw() {
     else gl.disable(gl.POLYGON_OFFSET_FILL);
     gl.uniformMatrix4fv(uModel, false, Float32Array.from(moving ? state.jaw : IDENTITY));
     gl.uniform3fv(uColour, moving && state.outOfRange ? OUT_OF_RANGE : COLOURS[name]);
-    gl.bindVertexArray(m.vao);
-    gl.drawElements(gl.TRIANGLES, m.count, gl.UNSIGNED_INT, 0);
+    if (state.moving) { gl.bindVertexArray(m.coarseVao); gl.drawElements(gl.TRIANGLES, m.coarseCount, gl.UNSIGNED_INT, 0); }
+    else { gl.bindVertexArray(m.vao); gl.drawElements(gl.TRIANGLES, m.count, gl.UNSIGNED_INT, 0); }
   }
   gl.bindVertexArray(null);
   // Reading a pixel back waits for the picture to be finished, as finish() need not.
@@ -328,6 +364,7 @@ async function poseFor(target, setSliders) {
 for (const n of NAMES)
   $(n).addEventListener("input", () => {
     sliderInputAt = performance.now();
+    moved();
     view.trackedFrame = null;
     enqueue(() => poseFor(sliderValues(), false));
   });
@@ -357,11 +394,13 @@ window.addEventListener("mousemove", (e) => {
   if (drag) {
     const r = canvas.getBoundingClientRect();
     drag.target = underCursor(e.clientX - r.left, e.clientY - r.top, drag.start);
+    moved();
     enqueue(ikTo(drag.target));
     drawMarks();
   } else if (orbiting) {
     state.orbit.yaw = orbiting.yaw - (e.clientX - orbiting.x) * 0.01;
     state.orbit.pitch = Math.max(-1.5, Math.min(1.5, orbiting.pitch + (e.clientY - orbiting.y) * 0.01));
+    moved();
     draw();
   }
 });
@@ -379,6 +418,7 @@ window.addEventListener("mouseup", (e) => {
 });
 canvas.addEventListener("wheel", (e) => {
   state.orbit.dist = Math.max(20, Math.min(1000, state.orbit.dist * Math.exp(e.deltaY * 0.001)));
+  moved();
   draw();
   e.preventDefault();
 }, { passive: false });
@@ -446,6 +486,7 @@ function play() {
       else { playing = null; $("play").textContent = "Play"; t = t1; }
     }
     $("key-time").value = t.toFixed(2);
+    moved();
     enqueue(() => poseFor(valuesAt(t), true));
     if (playing === token) requestAnimationFrame(step);
   };
@@ -830,7 +871,9 @@ Object.assign(view, {
   dragging: () => drag !== null,
   jaw: () => Array.from(state.jaw),
   poseFor: (target) => poseFor(target, true),
-  idle: () => !inFlight && !waiting,
+  // Answered and drawn at rest (the full meshes), as a picture to compare must be.
+  idle: () => !inFlight && !waiting && !state.moving,
+  answered: () => !inFlight && !waiting,
   workIdle: () => !wb.busy && !wb.polling && wb.ops.length === 0,
   draft: () => wb.draft,
 });
@@ -845,15 +888,20 @@ async function bench(n) {
     const span = Math.floor(((hi - lo) * 2) / 3 / 0.5), i = k % (2 * span);
     s.value = lo + 0.5 * (i < span ? i : 2 * span - i);
     s.dispatchEvent(new Event("input"));
-    while (view.redraws.length === done || !view.idle()) await new Promise((r) => setTimeout(r, 1));
+    while (view.redraws.length === done || !view.answered()) await new Promise((r) => setTimeout(r, 1));
     draws.push(draw());
   }
+  // Then at rest: the full meshes, as drawn once the slider stops.
+  while (state.moving) await new Promise((r) => setTimeout(r, 10));
+  const rest = [];
+  for (let k = 0; k < 10; k++) rest.push(draw());
   const sorted = (a) => a.slice().sort((x, y) => x - y);
-  const t = sorted(view.redraws.slice(1)), d = sorted(draws);
+  const t = sorted(view.redraws.slice(1)), d = sorted(draws), r = sorted(rest);
   const triangles = Object.values(state.meshes).reduce((a, m) => a + m.count / 3, 0);
+  const coarse = Object.values(state.meshes).reduce((a, m) => a + m.coarseCount / 3, 0);
   const pre = document.createElement("pre");
   pre.id = "bench";
-  pre.textContent = JSON.stringify({ moves: t.length, triangles, slider_to_frame_ms: { median: t[t.length >> 1], max: t[t.length - 1] }, draw_ms: { median: d[d.length >> 1], max: d[d.length - 1] }, contexts_lost: view.contextLost || 0 });
+  pre.textContent = JSON.stringify({ moves: t.length, triangles, coarse_triangles: coarse, slider_to_frame_ms: { median: t[t.length >> 1], max: t[t.length - 1] }, draw_ms: { median: d[d.length >> 1], max: d[d.length - 1] }, rest_draw_ms: { median: r[r.length >> 1], max: r[r.length - 1] }, contexts_lost: view.contextLost || 0 });
   document.body.appendChild(pre);
 }
 const query = new URLSearchParams(location.search);
