@@ -304,6 +304,12 @@ impl Capture {
             path: init_path.clone(),
             what: "init.json (the first frame's poses, or bootstrap points per arch)".into(),
         })?;
+        self.resolve_init(init, &init_path)
+    }
+
+    /// The first frame's poses an init gives: as written, or its points triangulated and
+    /// fitted rigidly; `init_path` names it in errors.
+    pub fn resolve_init(&self, init: &Init, init_path: &Path) -> Result<ArchPoses> {
         let resolve = |arch: Arch, ai: &ArchInit| -> Result<Pose> {
             match ai {
                 ArchInit::Pose(p) => Ok(*p),
@@ -319,7 +325,7 @@ impl Capture {
                             .collect();
                         let x = triangulate(&views).map_err(|e| {
                             Error::invalid(
-                                &init_path,
+                                init_path,
                                 format!("{}.points[{k}]", arch.name()),
                                 e.to_string(),
                             )
@@ -333,13 +339,13 @@ impl Capture {
                         world.push(x);
                     }
                     let fitted = fit_rigid(&model, &world).map_err(|e| {
-                        Error::invalid(&init_path, format!("{}.points", arch.name()), e.to_string())
+                        Error::invalid(init_path, format!("{}.points", arch.name()), e.to_string())
                     })?;
                     // Pixels in the image can still triangulate to nonsense (rays nearly
                     // parallel): the pose must be one a pose file could give.
                     crate::formats::PoseJson::from(&fitted)
                         .to_pose(
-                            &init_path,
+                            init_path,
                             &format!("{}.points (the pose they give)", arch.name()),
                         )
                         .map(|_| fitted)
@@ -363,6 +369,12 @@ impl Capture {
 
     fn read_init(&self, path: &Path) -> Result<Init> {
         let ij: InitJson = read_json(path, "init.json")?;
+        self.init_from(&ij, path)
+    }
+
+    /// An init.json's content checked against this capture (cameras, vertices); `path` names
+    /// it in errors.
+    pub fn init_from(&self, ij: &InitJson, path: &Path) -> Result<Init> {
         let names = self.camera_names();
         let arch_init = |arch: Arch, a: &ArchInitJson| -> Result<ArchInit> {
             let field = arch.name();

@@ -17,7 +17,8 @@ use crate::cli::track::TrackingArgs;
 pub struct Args {
     /// The rig file: `rig learn`'s, or `envelope learn`'s.
     pub rig: PathBuf,
-    /// A capture: its meshes are drawn, and with --tracks its frames are on the timeline.
+    /// A capture: its meshes are drawn, the first pose can be picked on its pictures (written
+    /// as init.json), and with --tracks its frames are on the timeline.
     #[arg(long)]
     pub capture: Option<PathBuf>,
     /// The capture's tracks.json (with --capture): the timeline and each camera's overlay.
@@ -53,7 +54,7 @@ pub fn run(a: Args) -> anyhow::Result<()> {
         .as_deref()
         .map(|p| load_mesh(p).map(|m| m.0))
         .transpose()?;
-    let (meshes, tracked) = match &a.capture {
+    let (meshes, opened, tracked) = match &a.capture {
         Some(dir) => {
             let capture = Capture::open_with(
                 dir,
@@ -63,6 +64,7 @@ pub fn run(a: Args) -> anyhow::Result<()> {
                 },
             )
             .with_context(|| format!("invalid capture {}", dir.display()))?;
+            let capture = Arc::new(capture);
             let meshes = Meshes {
                 upper: Some(capture.upper().clone()),
                 lower: capture.lower().clone(),
@@ -76,7 +78,7 @@ pub fn run(a: Args) -> anyhow::Result<()> {
             let tracked = a
                 .tracks
                 .as_deref()
-                .map(|t| Workbench::open(capture, t, retracking).map(Arc::new))
+                .map(|t| Workbench::open(Arc::clone(&capture), t, retracking).map(Arc::new))
                 .transpose()?;
             if let (Some(t), true) = (
                 &a.tracks,
@@ -87,7 +89,7 @@ pub fn run(a: Args) -> anyhow::Result<()> {
                     t.display()
                 );
             }
-            (meshes, tracked)
+            (meshes, Some(capture), tracked)
         }
         None => {
             let Some(lower) = &a.lower else {
@@ -102,10 +104,10 @@ pub fn run(a: Args) -> anyhow::Result<()> {
                 lower: load_mesh(lower)?.0,
                 mandible,
             };
-            (meshes, None)
+            (meshes, None, None)
         }
     };
-    let viewer = Viewer::new(rig, &a.rig, meshes, tracked)?;
+    let viewer = Viewer::new(rig, &a.rig, meshes, opened, tracked)?;
     serve(&viewer, SocketAddr::new(a.host, a.port), |addr| {
         println!("jawtrack view: http://{addr}/ (Ctrl-C to stop)");
         let _ = std::io::stdout().flush();

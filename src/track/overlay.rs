@@ -36,7 +36,7 @@ pub fn write_overlays(
             k,
             masks.frame,
             Some(mask),
-            poses,
+            Some(poses),
             ArchColours::Paper,
         )?
         else {
@@ -60,7 +60,7 @@ pub fn png(rgb: &image::RgbImage) -> Vec<u8> {
 }
 
 /// Camera `k`'s overlay of `frame` at the masks' resolution: its video frame (black without
-/// images/), the mask when given, the models at `poses`; with the box the models cover
+/// images/), the mask when given, the models at `poses` when given; with the box the models cover
 /// (x0, y0, x1, y1, exclusive; `None` when out of view). `None` when the camera's mask size
 /// is not known.
 pub fn picture(
@@ -68,7 +68,7 @@ pub fn picture(
     k: usize,
     frame: u32,
     mask: Option<&LabelMask>,
-    poses: &ArchPoses,
+    poses: Option<&ArchPoses>,
     colours: ArchColours,
 ) -> Result<Option<(image::RgbImage, Option<[u32; 4]>)>> {
     let Some(cam) = capture.cameras()[k].mask_camera() else {
@@ -78,13 +78,16 @@ pub fn picture(
         ArchColours::Paper => CLASS_BODY,
         ArchColours::Distinct => CLASS_LOWER_BODY,
     };
-    let classes = render_labels(
-        &cam,
-        &[
-            (capture.upper(), &poses.upper, CLASS_BODY, CLASS_BOI),
-            (capture.lower(), &poses.lower, lower_body, CLASS_BOI),
-        ],
-    );
+    let classes = match poses {
+        Some(poses) => render_labels(
+            &cam,
+            &[
+                (capture.upper(), &poses.upper, CLASS_BODY, CLASS_BOI),
+                (capture.lower(), &poses.lower, lower_body, CLASS_BOI),
+            ],
+        ),
+        None => vec![0; cam.width as usize * cam.height as usize],
+    };
     let (w, h) = (cam.width, cam.height);
     let mut rgb = match capture.image_path(k, frame) {
         Some(path) => image::open(&path)

@@ -7,6 +7,7 @@
 //! The server ([`serve`]) answers the page's questions through [`Viewer`]; the drawing, the
 //! orbit camera, picking and the keys live in the page (`page/view.js`).
 
+mod first_pose;
 mod page;
 mod scene;
 mod server;

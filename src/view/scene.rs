@@ -3,13 +3,15 @@
 //! dragged vertex, an animation as glTF, a camera's overlay) in the animator's units.
 
 use std::path::Path;
-use std::sync::Arc;
+use std::sync::{Arc, Mutex};
 use std::time::Instant;
 
 use nalgebra::Vector3;
 use serde::{Deserialize, Serialize};
 
 use crate::anatomy::motion::{Anatomical, MotionFrame};
+use crate::arch::ArchPoses;
+use crate::capture::Capture;
 use crate::error::{Error, Result};
 use crate::export::gltf::{self, write_gltf};
 use crate::geometry::{Pose, jaw_pose};
@@ -19,6 +21,7 @@ use crate::rig::animate::{Key, animate_animator};
 use crate::rig::three::{nearest_animator, solve_animator};
 use crate::track::overlay::{self, ArchColours};
 
+use super::first_pose::{FirstPoseQuery, FirstPoseReply, first_pose};
 use super::workbench::{Draft, EditQuery, FrameQuery, JobReply, RetrackQuery, Workbench};
 
 /// The meshes the page draws: the upper arch fixed (upper frame), the lower arch and the
@@ -40,6 +43,10 @@ pub struct Viewer {
     pub meshes: Meshes,
     /// Each mesh with fewer triangles over the same vertices, drawn while anything moves.
     coarse: Meshes,
+    /// The capture given, for its pictures and the first pose picked on them.
+    capture: Option<Arc<Capture>>,
+    /// The first pose last fitted from picked points, drawn over the pictures.
+    fitted: Mutex<Option<ArchPoses>>,
     tracked: Option<Arc<Workbench>>,
     extent: Extent,
     rest: [f64; 3],
@@ -155,7 +162,18 @@ pub struct SceneReply {
     pub extent: Extent,
     pub rest: PoseReply,
     pub meshes: Vec<&'static str>,
+    /// The capture's cameras and first frame, when one was given (the first pose is picked
+    /// on its pictures).
+    pub capture: Option<CaptureInfo>,
     pub timeline: Option<Timeline>,
+}
+
+#[derive(Debug, Clone, Serialize)]
+pub struct CaptureInfo {
+    pub cameras: Vec<String>,
+    pub first_frame: u32,
+    /// Whether the capture has an init.json.
+    pub has_init: bool,
 }
 
 #[derive(Debug, Clone, Serialize)]
@@ -207,6 +225,7 @@ impl Viewer {
         rig: Box<dyn ThreeParameterRig + Send + Sync>,
         rig_path: &Path,
         meshes: Meshes,
+        capture: Option<Arc<Capture>>,
         tracked: Option<Arc<Workbench>>,
     ) -> Result<Viewer> {
         let motion = rig.motion_frame().ok_or_else(|| {
@@ -253,6 +272,8 @@ impl Viewer {
             motion,
             meshes,
             coarse,
+            capture,
+            fitted: Mutex::new(None),
             tracked,
             extent,
             rest,
@@ -297,6 +318,11 @@ impl Viewer {
             extent: self.extent.clone(),
             rest: self.reply(self.rest, true),
             meshes,
+            capture: self.capture.as_ref().map(|c| CaptureInfo {
+                cameras: c.camera_names().into_iter().map(String::from).collect(),
+                first_frame: c.frames().start,
+                has_init: c.init().is_some(),
+            }),
             timeline: self.timeline(),
         }
     }
@@ -436,10 +462,16 @@ impl Viewer {
             .ok_or_else(|| Refused(format!("frame {frame} was not tracked")))?;
         let masks = t.capture.load_masks(frame).ok();
         let mask = masks.as_ref().and_then(|m| m.masks[k].as_ref());
-        let (rgb, models) =
-            overlay::picture(&t.capture, k, frame, mask, &poses, ArchColours::Distinct)
-                .map_err(|e| Refused(e.to_string()))?
-                .ok_or_else(|| Refused(format!("{camera}: the picture's size is not known")))?;
+        let (rgb, models) = overlay::picture(
+            &t.capture,
+            k,
+            frame,
+            mask,
+            Some(&poses),
+            ArchColours::Distinct,
+        )
+        .map_err(|e| Refused(e.to_string()))?
+        .ok_or_else(|| Refused(format!("{camera}: the picture's size is not known")))?;
         let crop = match kept {
             Some(c) => c,
             None => {
@@ -462,6 +494,41 @@ impl Viewer {
         let [cx, cy, cw, ch] = crop;
         let crop = image::imageops::crop_imm(&rgb, cx, cy, cw, ch).to_image();
         Ok(overlay::png(&crop))
+    }
+
+    /// Camera `camera`'s whole picture of `frame` (video frame and mask, at the masks'
+    /// resolution), with the first pose last fitted from picked points, as PNG.
+    pub fn picture(&self, camera: &str, frame: u32) -> std::result::Result<Vec<u8>, Refused> {
+        let c = self
+            .capture
+            .as_ref()
+            .ok_or_else(|| Refused("no capture was given".into()))?;
+        let k = c
+            .camera_names()
+            .iter()
+            .position(|n| *n == camera)
+            .ok_or_else(|| Refused(format!("no camera {camera:?}")))?;
+        if !c.frames().contains(&frame) {
+            return Err(Refused(format!("no frame {frame} in the capture")));
+        }
+        let masks = c.load_masks(frame).ok();
+        let mask = masks.as_ref().and_then(|m| m.masks[k].as_ref());
+        let fitted = *self.fitted.lock().unwrap_or_else(|e| e.into_inner());
+        let (rgb, _) = overlay::picture(c, k, frame, mask, fitted.as_ref(), ArchColours::Distinct)
+            .map_err(|e| Refused(e.to_string()))?
+            .ok_or_else(|| Refused(format!("{camera}: the picture's size is not known")))?;
+        Ok(overlay::png(&rgb))
+    }
+
+    /// Fit the first pose from picked points (and write init.json when asked).
+    pub fn first_pose(&self, q: &FirstPoseQuery) -> std::result::Result<FirstPoseReply, Refused> {
+        let c = self
+            .capture
+            .as_ref()
+            .ok_or_else(|| Refused("no capture was given".into()))?;
+        let (poses, reply) = first_pose(c, q).map_err(|e| Refused(e.to_string()))?;
+        *self.fitted.lock().unwrap_or_else(|e| e.into_inner()) = Some(poses);
+        Ok(reply)
     }
 
     fn workbench(&self) -> std::result::Result<&Arc<Workbench>, Refused> {

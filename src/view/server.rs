@@ -366,6 +366,12 @@ fn linger(stream: &mut TcpStream) {
     }
 }
 
+/// `<camera>/<frame>.png`.
+fn camera_frame(rest: &str) -> Option<(&str, u32)> {
+    let (cam, f) = rest.rsplit_once('/')?;
+    Some((cam, f.strip_suffix(".png")?.parse().ok()?))
+}
+
 fn question<T: serde::de::DeserializeOwned>(body: &[u8]) -> Result<T, Refused> {
     serde_json::from_slice(body).map_err(|e| Refused(format!("the request's JSON: {e}")))
 }
@@ -414,6 +420,20 @@ fn answer(viewer: &Viewer, request: &Request, body: &[u8]) -> Reply {
             Ok(r) => json(&r),
             Err(e) => refused(404, &e.0),
         },
+        ("POST", "/api/first-pose") => match question(body).and_then(|q| viewer.first_pose(&q)) {
+            Ok(r) => json(&r),
+            Err(e) => refused(400, &e.0),
+        },
+        ("GET", path) if path.starts_with("/picture/") => {
+            // /picture/<camera>/<frame>.png
+            match camera_frame(&path["/picture/".len()..]) {
+                Some((cam, frame)) => match viewer.picture(cam, frame) {
+                    Ok(png) => bytes(200, "image/png", png),
+                    Err(e) => refused(404, &e.0),
+                },
+                None => refused(404, "expected /picture/<camera>/<frame>.png"),
+            }
+        }
         ("GET", path) if path.starts_with("/mesh/") => {
             let name = path["/mesh/".len()..].trim_end_matches(".bin");
             match viewer.mesh_bytes(name) {
@@ -423,11 +443,7 @@ fn answer(viewer: &Viewer, request: &Request, body: &[u8]) -> Reply {
         }
         ("GET", path) if path.starts_with("/overlay/") => {
             // /overlay/<camera>/<frame>.png
-            let rest = &path["/overlay/".len()..];
-            let parsed = rest
-                .rsplit_once('/')
-                .and_then(|(cam, f)| Some((cam, f.strip_suffix(".png")?.parse::<u32>().ok()?)));
-            match parsed {
+            match camera_frame(&path["/overlay/".len()..]) {
                 Some((cam, frame)) => match viewer.overlay(cam, frame) {
                     Ok(png) => bytes(200, "image/png", png),
                     Err(e) => refused(404, &e.0),

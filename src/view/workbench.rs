@@ -57,7 +57,7 @@ pub struct TrackedFrame {
 
 /// A tracked capture on the page, shared by the server's threads and a re-track's.
 pub struct Workbench {
-    pub capture: Capture,
+    pub capture: Arc<Capture>,
     tracks: PathBuf,
     retracking: Retracking,
     /// The fingerprint a re-track's output carries: this capture with these settings.
@@ -192,7 +192,7 @@ const MAX_MM: f64 = 100.0;
 
 impl Workbench {
     /// `capture`'s frames as `tracks` holds them; re-tracked with `retracking`.
-    pub fn open(capture: Capture, tracks: &Path, retracking: Retracking) -> Result<Workbench> {
+    pub fn open(capture: Arc<Capture>, tracks: &Path, retracking: Retracking) -> Result<Workbench> {
         let json: TracksJson = crate::io::read_json(tracks, "tracks file")?;
         let mut records = json.frames;
         records.sort_by_key(|r| r.frame);
@@ -849,7 +849,7 @@ mod tests {
         .unwrap();
         let capture = Capture::open(&cap).unwrap();
         let w = Workbench::open(
-            capture,
+            Arc::new(capture),
             &cap.join("gt/poses.json"),
             Retracking {
                 settings: TrackSettings::default(),
@@ -908,7 +908,7 @@ mod tests {
         let truth = |frame: u32| gt[frame as usize];
         let w = Arc::new(
             Workbench::open(
-                capture,
+                Arc::new(capture),
                 &tracks,
                 Retracking {
                     settings,

@@ -197,6 +197,22 @@ impl Browser {
         image::load_from_memory(&png).unwrap().to_rgba8()
     }
 
+    /// A real mouse click at `at` (viewport pixels).
+    pub fn click(&self, at: [f64; 2]) {
+        let (x, y) = (at[0].round() as i64, at[1].round() as i64);
+        let actions = vec![
+            json!({"type": "pointerMove", "duration": 0, "x": x, "y": y}),
+            json!({"type": "pointerDown", "button": 0}),
+            json!({"type": "pointerUp", "button": 0}),
+        ];
+        self.call(
+            "POST",
+            "/actions",
+            json!({"actions": [{"type": "pointer", "id": "mouse",
+                "parameters": {"pointerType": "mouse"}, "actions": actions}]}),
+        );
+    }
+
     /// A real mouse: press at `from`, move to `to` in steps, release (viewport pixels).
     pub fn drag(&self, from: [f64; 2], to: [f64; 2]) {
         let mut actions = vec![

@@ -246,7 +246,9 @@ function movingPart() {
 }
 function posed(part, vertex) {
   const p = state.meshes[part].positions;
-  return transform(state.jaw, [p[3 * vertex], p[3 * vertex + 1], p[3 * vertex + 2]]);
+  const at = [p[3 * vertex], p[3 * vertex + 1], p[3 * vertex + 2]];
+  // The upper arch is drawn where it is; the others move with the jaw.
+  return part === "upper" ? at : transform(state.jaw, at);
 }
 // A point of the upper frame in the canvas' CSS pixels, with its depth (NDC z).
 function toCanvas(point) {
@@ -264,10 +266,10 @@ function underCursor(x, y, through) {
   const t = dot(sub(through, a), normal) / dot(dir, normal);
   return [a[0] + t * dir[0], a[1] + t * dir[1], a[2] + t * dir[2]];
 }
-// The front-most vertex of the moving part within 10 px of the cursor.
-function pick(x, y) {
+// The front-most vertex of `parts` (the moving ones unless said) within 10 px of the cursor.
+function pick(x, y, parts = ["mandible", "lower"]) {
   let best = null;
-  for (const part of ["mandible", "lower"]) {
+  for (const part of parts) {
     const m = state.meshes[part];
     if (!m) continue;
     const n = m.positions.length / 3;
@@ -285,7 +287,6 @@ const marks = $("marks").getContext("2d");
 let drag = null;
 function drawMarks() {
   marks.clearRect(0, 0, 760, 560);
-  if (!drag) return;
   const dot = (p, colour) => {
     const [x, y] = toCanvas(p);
     marks.fillStyle = colour;
@@ -293,6 +294,15 @@ function drawMarks() {
     marks.arc(x, y, 4, 0, 2 * Math.PI);
     marks.fill();
   };
+  // The first pose's picked points, numbered.
+  fp.points.forEach((pt, i) => {
+    if (!state.meshes[pt.arch]) return;
+    const p = posed(pt.arch, pt.vertex);
+    dot(p, i === fp.current ? "#ffffff" : PICK_COLOURS[pt.arch]);
+    const [x, y] = toCanvas(p);
+    marks.fillStyle = "#fff"; marks.font = "12px sans-serif"; marks.fillText(String(i + 1), x + 6, y - 6);
+  });
+  if (!drag) return;
   if (drag.target) dot(drag.target, "#ffeb3b");
   dot(posed(drag.part, drag.vertex), "#ff5252");
 }
@@ -372,6 +382,17 @@ for (const n of NAMES)
 // ---- mouse: orbit, zoom, drag IK ----
 let orbiting = null;
 canvas.addEventListener("mousedown", (e) => {
+  if ($("pick-mode").checked) {
+    const arch = document.querySelector("input[name=pick-arch]:checked").value;
+    const at = pick(e.offsetX, e.offsetY, [arch]);
+    if (at) {
+      fp.points.push({ arch, vertex: at.vertex, pixels: {} });
+      fp.current = fp.points.length - 1;
+      showPicked();
+      e.preventDefault();
+      return;
+    }
+  }
   const hit = pick(e.offsetX, e.offsetY);
   if (hit) {
     drag = { part: hit.part, vertex: hit.vertex, start: posed(hit.part, hit.vertex), target: null };
@@ -815,6 +836,88 @@ function setupWorkbench(tl) {
   if (tl.job.running) pollJob(tl);
 }
 
+// ---- the first pose: points picked on the models and in the pictures, fitted, init.json ----
+const PICK_COLOURS = { upper: "#ff5252", lower: "#ffd740" };
+const fp = { points: [], current: -1, shown: 0, frame: 0, cameras: [] };
+function pickStatus(text, bad) {
+  $("pick-status").textContent = text;
+  $("pick-status").className = bad ? "hint bad" : "hint";
+}
+function showPictures() {
+  fp.shown++;
+  for (const cam of fp.cameras) $(`picture-${cam}`).src = `/picture/${encodeURIComponent(cam)}/${fp.frame}.png?v=${fp.shown}`;
+}
+// The picked points in the table and on each picture.
+function showPicked(residuals) {
+  const t = $("picked");
+  t.innerHTML = "";
+  fp.points.forEach((pt, i) => {
+    const row = t.insertRow();
+    if (i === fp.current) row.className = "current";
+    const where = Object.entries(pt.pixels).map(([c, p]) => `${c} (${p[0].toFixed(1)}, ${p[1].toFixed(1)})`).join(", ");
+    const r = residuals ? residuals[pt.arch][fp.points.filter((q) => q.arch === pt.arch).indexOf(pt)] : undefined;
+    row.insertCell().textContent = `${i + 1}: ${pt.arch} vertex ${pt.vertex}`;
+    row.insertCell().textContent = where || "click it in two or more pictures";
+    row.insertCell().textContent = r === undefined ? "" : `off by ${r.toFixed(1)} px`;
+    row.addEventListener("click", () => { fp.current = i; showPicked(residuals); });
+  });
+  for (const cam of fp.cameras) {
+    const img = $(`picture-${cam}`), c = $(`picture-marks-${cam}`);
+    c.width = img.clientWidth; c.height = img.clientHeight;
+    const g = c.getContext("2d"), s = img.clientWidth / (img.naturalWidth || 1);
+    fp.points.forEach((pt, i) => {
+      const p = pt.pixels[cam];
+      if (!p) return;
+      const x = (p[0] + 0.5) * s, y = (p[1] + 0.5) * s;
+      g.strokeStyle = i === fp.current ? "#ffffff" : PICK_COLOURS[pt.arch]; g.lineWidth = 1.5;
+      g.beginPath(); g.moveTo(x - 5, y); g.lineTo(x + 5, y); g.moveTo(x, y - 5); g.lineTo(x, y + 5); g.stroke();
+      g.fillStyle = "#fff"; g.font = "11px sans-serif"; g.fillText(String(i + 1), x + 5, y - 5);
+    });
+  }
+  drawMarks();
+}
+async function fitPose(write) {
+  const body = { upper: [], lower: [], write };
+  for (const pt of fp.points) body[pt.arch].push({ vertex: pt.vertex, pixels: pt.pixels });
+  try {
+    const r = await (await ask("/api/first-pose", body)).json();
+    fp.fitted = r;
+    showPicked(r.residual_px);
+    showPictures();
+    const worst = Math.max(...r.residual_px.upper, ...r.residual_px.lower);
+    pickStatus(r.written ? `init.json written: ${r.written}${r.kept ? ` (the one before kept as ${r.kept})` : ""}; clicks within ${worst.toFixed(1)} px of the fitted pose` : `fitted: the clicks are within ${worst.toFixed(1)} px of the fitted pose, drawn over the pictures`);
+  } catch (e) { pickStatus(e.message, true); }
+}
+function setupFirstPose(info) {
+  $("first-pose").hidden = false;
+  fp.frame = info.first_frame;
+  fp.cameras = info.cameras;
+  for (const cam of info.cameras) {
+    const box = document.createElement("div");
+    box.className = "picture";
+    const img = document.createElement("img");
+    img.id = `picture-${cam}`; img.alt = cam; img.title = cam; img.draggable = false;
+    const marksCanvas = document.createElement("canvas");
+    marksCanvas.id = `picture-marks-${cam}`;
+    box.append(img, marksCanvas);
+    $("pictures").appendChild(box);
+    img.addEventListener("load", () => showPicked(fp.fitted && fp.fitted.residual_px));
+    img.addEventListener("click", (e) => {
+      const pt = fp.points[fp.current];
+      if (!pt) { pickStatus("pick a point on the model first (Pick on, then click the 3-D view)", true); return; }
+      // The picture's own pixels (the masks'), whatever size it is shown at.
+      const s = img.naturalWidth / img.clientWidth;
+      pt.pixels[cam] = [e.offsetX * s - 0.5, e.offsetY * s - 0.5];
+      showPicked();
+    });
+  }
+  $("fit-pose").addEventListener("click", () => fitPose(false));
+  $("write-init").addEventListener("click", () => fitPose(true));
+  $("clear-points").addEventListener("click", () => { fp.points = []; fp.current = -1; showPicked(); });
+  showPictures();
+  if (!info.has_init) pickStatus("this capture has no init.json: pick the first pose here, or give `track --locate`");
+}
+
 // ---- start ----
 function setupProgram() {
   prog = program();
@@ -854,6 +957,7 @@ async function start() {
   NAMES.forEach((n, i) => { $(n).min = ranges[i][0]; $(n).max = ranges[i][1]; });
   apply(scene.rest, { setSliders: true });
   if (scene.timeline) setupTimeline(scene.timeline);
+  if (scene.capture) setupFirstPose(scene.capture);
   // `?opening=12&lateral=1&protrusion=2` opens the page at that pose (a link to a pose).
   const asked = NAMES.map((n) => Number(new URLSearchParams(location.search).get(n) || 0));
   if (asked.some((v) => v !== 0)) await poseFor(asked, true);
@@ -876,6 +980,7 @@ Object.assign(view, {
   answered: () => !inFlight && !waiting,
   workIdle: () => !wb.busy && !wb.polling && wb.ops.length === 0,
   draft: () => wb.draft,
+  firstPose: () => ({ points: fp.points, current: fp.current, fitted: fp.fitted || null }),
 });
 // `?bench=N`: sweep the opening slider N times as a user would, then write the page's frame
 // times into <pre id="bench"> (benches/view.sh reads it).
