@@ -612,11 +612,15 @@ fn a_first_pose_picked_by_clicks_tracks_like_init_json() {
             for (k, cam) in ["cam0", "cam1"].iter().enumerate() {
                 let c = capture.cameras()[k].mask_camera().unwrap();
                 let px = c.project(&world).unwrap();
+                // The picture shows the region around the mask's labels.
                 let img = b.js(&format!(
-                    "const i = document.getElementById('picture-{cam}'); i.scrollIntoView(); const r = i.getBoundingClientRect(); return [r.left, r.top, i.clientWidth / i.naturalWidth]"
+                    "const i = document.getElementById('picture-{cam}'); i.scrollIntoView(); const r = i.getBoundingClientRect(); const o = window.view.scene.capture.crops[{k}]; return [r.left, r.top, i.clientWidth / i.naturalWidth, o[0], o[1]]"
                 ));
                 let g = f64s(&img);
-                b.click([g[0] + (px.x + 0.5) * g[2], g[1] + (px.y + 0.5) * g[2]]);
+                b.click([
+                    g[0] + (px.x - g[3] + 0.5) * g[2],
+                    g[1] + (px.y - g[4] + 0.5) * g[2],
+                ]);
             }
             b.js("window.scrollTo(0, 0)");
         }
@@ -626,6 +630,22 @@ fn a_first_pose_picked_by_clicks_tracks_like_init_json() {
         "return document.getElementById('pick-status').textContent.startsWith('init.json written')",
     );
     let fitted = b.js("return window.view.firstPose().fitted");
+    // The pose init.json gives: the truth's to a fraction of a millimetre.
+    let written = jawtrack::capture::Capture::open(&cap)
+        .unwrap()
+        .initial_poses()
+        .unwrap();
+    for (got, want) in [(written.upper, truth.upper), (written.lower, truth.lower)] {
+        let q = nalgebra::UnitQuaternion::from_rotation_matrix(
+            &(got.rotation.inverse() * want.rotation),
+        );
+        let (mm, deg) = (
+            (got.translation - want.translation).norm(),
+            2.0 * q.vector().norm().atan2(q.scalar().abs()).to_degrees(),
+        );
+        eprintln!("picked first pose: {mm:.3} mm, about {deg:.2}° off the truth");
+        assert!(mm < 0.5 && deg < 1.5, "{mm} mm, {deg}°");
+    }
     for arch in ["upper", "lower"] {
         let r = f64s(&fitted["residual_px"][arch]);
         assert_eq!(r.len(), 4);
@@ -663,7 +683,8 @@ fn a_first_pose_picked_by_clicks_tracks_like_init_json() {
     let t: TracksJson = serde_json::from_slice(&std::fs::read(&picked).unwrap()).unwrap();
     eprintln!("jaw error per frame: picked start {a:?}, true start {b_:?}");
     // Frame by frame the tracker's own noise is a few tenths of a millimetre (docs/cluster.md:
-    // the same take from two starts): the runs are compared as wholes.
+    // the same take from two starts differs by 0.22 / 0.47 / 0.75 mm): the runs are compared as
+    // wholes, within that.
     let stats = |v: &[(u32, f64)]| {
         let mut e: Vec<f64> = v.iter().map(|x| x.1).collect();
         e.sort_by(f64::total_cmp);
@@ -671,7 +692,7 @@ fn a_first_pose_picked_by_clicks_tracks_like_init_json() {
     };
     let ((median, worst), (median0, worst0)) = (stats(&a), stats(&b_));
     assert!(
-        median < median0 + 0.1 && worst < worst0 + 0.3,
+        median < median0 + 0.25 && worst < worst0 + 0.3,
         "jaw median / max {median:.3} / {worst:.3} mm from the picked start, {median0:.3} / {worst0:.3} from the true one"
     );
     assert_eq!(t.frames.len(), 10);

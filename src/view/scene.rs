@@ -174,6 +174,33 @@ pub struct CaptureInfo {
     pub first_frame: u32,
     /// Whether the capture has an init.json.
     pub has_init: bool,
+    /// Per camera, the part of the first frame's picture shown (x, y, width, height in the
+    /// masks' pixels: around what its mask labels), `None` for the whole.
+    pub crops: Vec<Option<[u32; 4]>>,
+}
+
+/// The region around box `[x0, y0, x1, y1]` of a `w`x`h` picture shown on the page: twice
+/// the box, at least a quarter of the picture's width, at the picture's aspect (the teeth fill
+/// a small part of the frame).
+fn around([x0, y0, x1, y1]: [u32; 4], w: u32, h: u32) -> [u32; 4] {
+    let size = (2 * (x1 - x0)).max(2 * (y1 - y0) * w / h).max(w / 4);
+    let cw = size.min(w);
+    let ch = (cw * h / w).min(h);
+    let cx = ((x0 + x1) / 2).saturating_sub(cw / 2).min(w - cw);
+    let cy = ((y0 + y1) / 2).saturating_sub(ch / 2).min(h - ch);
+    [cx, cy, cw, ch]
+}
+
+/// [`around`] what a mask labels (teeth or mouth), `None` where it labels nothing.
+fn labelled_crop(mask: &crate::capture::masks::LabelMask) -> Option<[u32; 4]> {
+    let w = mask.width as usize;
+    let mut b: Option<[u32; 4]> = None;
+    for (i, _) in mask.data.iter().enumerate().filter(|(_, v)| **v != 0) {
+        let (x, y) = ((i % w) as u32, (i / w) as u32);
+        let c = b.get_or_insert([x, y, x + 1, y + 1]);
+        *c = [c[0].min(x), c[1].min(y), c[2].max(x + 1), c[3].max(y + 1)];
+    }
+    b.map(|b| around(b, mask.width, mask.height))
 }
 
 #[derive(Debug, Clone, Serialize)]
@@ -318,10 +345,20 @@ impl Viewer {
             extent: self.extent.clone(),
             rest: self.reply(self.rest, true),
             meshes,
-            capture: self.capture.as_ref().map(|c| CaptureInfo {
-                cameras: c.camera_names().into_iter().map(String::from).collect(),
-                first_frame: c.frames().start,
-                has_init: c.init().is_some(),
+            capture: self.capture.as_ref().map(|c| {
+                let first = c.frames().start;
+                let masks = c.load_masks(first).ok();
+                CaptureInfo {
+                    cameras: c.camera_names().into_iter().map(String::from).collect(),
+                    first_frame: first,
+                    has_init: c.init().is_some(),
+                    crops: (0..c.cameras().len())
+                        .map(|k| {
+                            let mask = masks.as_ref().and_then(|m| m.masks[k].as_ref());
+                            mask.and_then(labelled_crop)
+                        })
+                        .collect(),
+                }
             }),
             timeline: self.timeline(),
         }
@@ -475,18 +512,11 @@ impl Viewer {
         let crop = match kept {
             Some(c) => c,
             None => {
-                // The teeth fill a small part of the frame: show the region around them, at
-                // least a quarter of the frame's width, at the frame's aspect.
-                let Some([x0, y0, x1, y1]) = models else {
+                let Some(b) = models else {
                     return Ok(overlay::png(&rgb));
                 };
                 let (w, h) = rgb.dimensions();
-                let size = (2 * (x1 - x0)).max(2 * (y1 - y0) * w / h).max(w / 4);
-                let cw = size.min(w);
-                let ch = (cw * h / w).min(h);
-                let cx = ((x0 + x1) / 2).saturating_sub(cw / 2).min(w - cw);
-                let cy = ((y0 + y1) / 2).saturating_sub(ch / 2).min(h - ch);
-                let crop = [cx, cy, cw, ch];
+                let crop = around(b, w, h);
                 t.keep_crop(k, frame, crop);
                 crop
             }
@@ -517,7 +547,12 @@ impl Viewer {
         let (rgb, _) = overlay::picture(c, k, frame, mask, fitted.as_ref(), ArchColours::Distinct)
             .map_err(|e| Refused(e.to_string()))?
             .ok_or_else(|| Refused(format!("{camera}: the picture's size is not known")))?;
-        Ok(overlay::png(&rgb))
+        let [cx, cy, cw, ch] =
+            mask.and_then(labelled_crop)
+                .unwrap_or([0, 0, rgb.width(), rgb.height()]);
+        Ok(overlay::png(
+            &image::imageops::crop_imm(&rgb, cx, cy, cw, ch).to_image(),
+        ))
     }
 
     /// Fit the first pose from picked points (and write init.json when asked).

@@ -838,7 +838,7 @@ function setupWorkbench(tl) {
 
 // ---- the first pose: points picked on the models and in the pictures, fitted, init.json ----
 const PICK_COLOURS = { upper: "#ff5252", lower: "#ffd740" };
-const fp = { points: [], current: -1, shown: 0, frame: 0, cameras: [] };
+const fp = { points: [], current: -1, shown: 0, frame: 0, cameras: [], crops: {} };
 function pickStatus(text, bad) {
   $("pick-status").textContent = text;
   $("pick-status").className = bad ? "hint bad" : "hint";
@@ -865,10 +865,11 @@ function showPicked(residuals) {
     const img = $(`picture-${cam}`), c = $(`picture-marks-${cam}`);
     c.width = img.clientWidth; c.height = img.clientHeight;
     const g = c.getContext("2d"), s = img.clientWidth / (img.naturalWidth || 1);
+    const o = fp.crops[cam];
     fp.points.forEach((pt, i) => {
       const p = pt.pixels[cam];
       if (!p) return;
-      const x = (p[0] + 0.5) * s, y = (p[1] + 0.5) * s;
+      const x = (p[0] - o[0] + 0.5) * s, y = (p[1] - o[1] + 0.5) * s;
       g.strokeStyle = i === fp.current ? "#ffffff" : PICK_COLOURS[pt.arch]; g.lineWidth = 1.5;
       g.beginPath(); g.moveTo(x - 5, y); g.lineTo(x + 5, y); g.moveTo(x, y - 5); g.lineTo(x, y + 5); g.stroke();
       g.fillStyle = "#fff"; g.font = "11px sans-serif"; g.fillText(String(i + 1), x + 5, y - 5);
@@ -892,6 +893,8 @@ function setupFirstPose(info) {
   $("first-pose").hidden = false;
   fp.frame = info.first_frame;
   fp.cameras = info.cameras;
+  // Where each picture shown starts in the whole one.
+  fp.crops = Object.fromEntries(info.cameras.map((c, k) => [c, info.crops[k] || [0, 0]]));
   for (const cam of info.cameras) {
     const box = document.createElement("div");
     box.className = "picture";
@@ -905,9 +908,9 @@ function setupFirstPose(info) {
     img.addEventListener("click", (e) => {
       const pt = fp.points[fp.current];
       if (!pt) { pickStatus("pick a point on the model first (Pick on, then click the 3-D view)", true); return; }
-      // The picture's own pixels (the masks'), whatever size it is shown at.
-      const s = img.naturalWidth / img.clientWidth;
-      pt.pixels[cam] = [e.offsetX * s - 0.5, e.offsetY * s - 0.5];
+      // The whole picture's own pixels (the masks'), whatever part and size is shown.
+      const s = img.naturalWidth / img.clientWidth, o = fp.crops[cam];
+      pt.pixels[cam] = [o[0] + e.offsetX * s - 0.5, o[1] + e.offsetY * s - 0.5];
       showPicked();
     });
   }
