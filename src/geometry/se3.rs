@@ -148,6 +148,17 @@ impl Pose {
         )
     }
 
+    /// The 4x4 matrix, column-major, as WebGL and glTF take it.
+    pub fn column_major(&self) -> [f64; 16] {
+        let r = self.rotation.matrix();
+        std::array::from_fn(|i| match (i % 4, i / 4) {
+            (3, 3) => 1.0,
+            (3, _) => 0.0,
+            (row, 3) => self.translation[row],
+            (row, col) => r[(row, col)],
+        })
+    }
+
     pub fn transform_point(&self, p: &Vector3<f64>) -> Vector3<f64> {
         self.rotation * p + self.translation
     }

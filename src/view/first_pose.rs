@@ -15,8 +15,6 @@ use crate::error::{Error, Result};
 use crate::formats::PerArchJson;
 use crate::io::write_json_atomic;
 
-use super::scene::column_major;
-
 /// Points picked for both arches.
 #[derive(Debug, Clone, Deserialize)]
 #[serde(deny_unknown_fields)]
@@ -135,8 +133,8 @@ pub fn first_pose(capture: &Capture, q: &FirstPoseQuery) -> Result<(ArchPoses, F
             .collect()
     };
     let mut reply = FirstPoseReply {
-        upper: column_major(&poses.upper),
-        lower: column_major(&poses.lower),
+        upper: poses.upper.column_major(),
+        lower: poses.lower.column_major(),
         residual_px: PerArchJson {
             upper: residuals(Arch::Upper, &q.upper),
             lower: residuals(Arch::Lower, &q.lower),

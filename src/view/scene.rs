@@ -14,7 +14,7 @@ use crate::arch::ArchPoses;
 use crate::capture::Capture;
 use crate::error::{Error, Result};
 use crate::export::gltf::{self, write_gltf};
-use crate::geometry::{Pose, jaw_pose};
+use crate::geometry::jaw_pose;
 use crate::mesh::{Mesh, Simplify};
 use crate::rig::ThreeParameterRig;
 use crate::rig::animate::{Key, animate_animator};
@@ -236,16 +236,6 @@ pub struct DraftReply {
 #[error("{0}")]
 pub struct Refused(pub String);
 
-pub(super) fn column_major(p: &Pose) -> [f64; 16] {
-    let r = p.rotation.matrix();
-    std::array::from_fn(|i| match (i % 4, i / 4) {
-        (3, 3) => 1.0,
-        (3, _) => 0.0,
-        (row, 3) => p.translation[row],
-        (row, col) => r[(row, col)],
-    })
-}
-
 impl Viewer {
     /// `rig_path` names the rig in errors. The rig must carry its jaw frame (animator units).
     pub fn new(
@@ -328,7 +318,7 @@ impl Viewer {
             animator: self.motion.measure(&pose).into(),
             lateral_range_mm: span(1, |a| a.lateral_mm),
             protrusion_range_mm: span(2, |a| a.protrusion_mm),
-            jaw: column_major(&pose),
+            jaw: pose.column_major(),
         }
     }
 
@@ -592,7 +582,7 @@ impl Viewer {
                         status: f.status.as_str(),
                         hand_set: f.hand_set,
                         animator: self.motion.measure(&jaw).into(),
-                        jaw: column_major(&jaw),
+                        jaw: jaw.column_major(),
                     }
                 })
                 .collect(),

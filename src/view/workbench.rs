@@ -36,8 +36,6 @@ use crate::track::{
     FrameResult, MaskSource, Session, SessionOptions, TrackSettings, TrackState, track_frames,
 };
 
-use super::scene::column_major;
-
 /// How frames are tracked again: what `track` would be given.
 #[derive(Debug, Clone)]
 pub struct Retracking {
@@ -509,14 +507,7 @@ impl Workbench {
         let last = records.last().map_or(first, |r| r.frame);
         let mut all = records;
         all.extend(f.records.iter().filter(|r| r.frame > last).cloned());
-        self.write(&mut f, all, Some(self.fingerprint.clone()))?;
-        f.shown = f
-            .records
-            .iter()
-            .map(|r| shown(&self.tracks, r))
-            .collect::<Result<Vec<_>>>()?;
-        f.crops.clear();
-        f.version += 1;
+        self.replace(&mut f, all)?;
         drop(f);
         self.remove_scratch(&scratch);
         Ok(stopped)
@@ -594,7 +585,14 @@ impl Workbench {
             settled.push(r, e);
         }
         settled.settle(true);
-        self.write(&mut f, settled.output(), Some(self.fingerprint.clone()))?;
+        self.replace(&mut f, settled.output())?;
+        Ok(stopped)
+    }
+
+    /// A re-track's outcome becomes tracks.json (with this page's fingerprint) and the frames
+    /// shown.
+    fn replace(&self, f: &mut Frames, records: Vec<FrameRecordJson>) -> Result<()> {
+        self.write(f, records, Some(self.fingerprint.clone()))?;
         f.shown = f
             .records
             .iter()
@@ -602,7 +600,7 @@ impl Workbench {
             .collect::<Result<Vec<_>>>()?;
         f.crops.clear();
         f.version += 1;
-        Ok(stopped)
+        Ok(())
     }
 
     /// A re-track's frame `r` is shown as it comes.
@@ -725,9 +723,9 @@ impl Workbench {
         };
         Ok(Draft {
             frame,
-            upper: column_major(&poses.upper),
-            lower: column_major(&poses.lower),
-            jaw: column_major(&poses.jaw()),
+            upper: poses.upper.column_major(),
+            lower: poses.lower.column_major(),
+            jaw: poses.jaw().column_major(),
             poses,
             terms: per(&now),
             saved: per(&before),
