@@ -461,6 +461,8 @@ impl Workbench {
         started: Instant,
     ) -> Result<Option<u32>> {
         let scratch = scratch_path(&self.tracks);
+        // What a re-track killed with the server left behind is no part of this one.
+        self.remove_scratch(&scratch);
         let first = kept[0].frame;
         write_json_atomic(
             &scratch,
