@@ -469,8 +469,21 @@ fn a_lost_frame_corrected_with_the_mouse_tracks_again_from_there() {
         now < 0.5 * saved,
         "the lower arch's E went from {saved} to {now}"
     );
+    let readout = |b: &Browser| {
+        b.js("return document.getElementById('timeline-readout').textContent")
+            .as_str()
+            .unwrap()
+            .to_owned()
+    };
+    let said = readout(&b);
+    assert!(
+        said.starts_with("frame 20 (low-confidence, moved and not saved)"),
+        "{said}"
+    );
     b.js("document.getElementById('save-frame').click()");
     b.wait("return window.view.scene.timeline.frames[20].hand_set === true");
+    let said = readout(&b);
+    assert!(said.starts_with("frame 20 (ok, hand-set)"), "{said}");
     b.js("document.getElementById('retrack').click()");
     b.wait("return document.getElementById('work-status').textContent.startsWith('re-tracked')");
     let status = b.js("return document.getElementById('work-status').textContent");

@@ -219,6 +219,8 @@ pub struct TimelineFrame {
     pub frame: u32,
     pub status: &'static str,
     pub hand_set: bool,
+    /// Moved by hand on the page and not saved.
+    pub drafted: bool,
     pub animator: AnimatorJson,
     pub jaw: [f64; 16],
 }
@@ -581,6 +583,7 @@ impl Viewer {
                         frame: f.frame,
                         status: f.status.as_str(),
                         hand_set: f.hand_set,
+                        drafted: f.drafted,
                         animator: self.motion.measure(&jaw).into(),
                         jaw: jaw.column_major(),
                     }

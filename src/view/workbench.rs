@@ -50,6 +50,8 @@ pub struct TrackedFrame {
     pub frame: u32,
     pub status: Status,
     pub hand_set: bool,
+    /// Moved by hand and not saved: the overlays draw the draft.
+    pub drafted: bool,
     pub poses: ArchPoses,
 }
 
@@ -180,6 +182,8 @@ pub struct Draft {
     pub terms: PerArchJson<Terms>,
     pub saved: PerArchJson<Terms>,
     pub hand_set: bool,
+    /// Whether the frame now has unsaved moves.
+    pub drafted: bool,
     pub version: u64,
 }
 
@@ -235,7 +239,11 @@ impl Workbench {
     /// version they are at.
     pub fn frames(&self) -> (Vec<TrackedFrame>, u64) {
         let f = lock(&self.frames);
-        (f.shown.clone(), f.version)
+        let mut shown = f.shown.clone();
+        for s in &mut shown {
+            s.drafted = f.drafts.contains_key(&s.frame);
+        }
+        (shown, f.version)
     }
 
     /// What the overlay of `frame` draws: the draft, else the frame's poses; and the crop
@@ -273,8 +281,9 @@ impl Workbench {
             EditOp::Reset => {
                 f.drafts.remove(&q.frame);
                 f.version += 1;
+                let hand_set = f.records[i].hand_set;
                 drop(f);
-                return self.draft_reply(q.frame, saved, saved, false);
+                return self.draft_reply(q.frame, saved, saved, hand_set, false);
             }
             EditOp::Drag { camera, pixels } => {
                 bounded(pixels, MAX_PIXELS, "pixels")?;
@@ -319,7 +328,7 @@ impl Workbench {
         f.version += 1;
         let hand_set = f.records[i].hand_set;
         drop(f);
-        self.draft_reply(q.frame, poses, saved, hand_set)
+        self.draft_reply(q.frame, poses, saved, hand_set, true)
     }
 
     /// Save a frame's draft (or its poses as they are) as hand-set: tracks.json is rewritten
@@ -337,6 +346,7 @@ impl Workbench {
             frame,
             status: Status::Ok,
             hand_set: true,
+            drafted: false,
             poses,
         };
         f.drafts.remove(&frame);
@@ -345,7 +355,7 @@ impl Workbench {
             .map_err(|e| e.to_string())?;
         f.version += 1;
         drop(f);
-        self.draft_reply(frame, poses, poses, true)
+        self.draft_reply(frame, poses, poses, true, false)
     }
 
     /// Track the frames after `frame` again, from its poses, up to the next hand-set frame
@@ -613,6 +623,7 @@ impl Workbench {
                 frame: r.frame,
                 status: r.status,
                 hand_set: false,
+                drafted: false,
                 poses: r.poses,
             };
             f.drafts.remove(&r.frame);
@@ -716,6 +727,7 @@ impl Workbench {
         poses: ArchPoses,
         saved: ArchPoses,
         hand_set: bool,
+        drafted: bool,
     ) -> Result<Draft, String> {
         let now = self.energies(frame, &poses).map_err(|e| e.to_string())?;
         let before = self.energies(frame, &saved).map_err(|e| e.to_string())?;
@@ -732,6 +744,7 @@ impl Workbench {
             terms: per(&now),
             saved: per(&before),
             hand_set,
+            drafted,
             version: lock(&self.frames).version,
         })
     }
@@ -768,6 +781,7 @@ fn shown(path: &Path, r: &FrameRecordJson) -> Result<TrackedFrame> {
         frame: r.frame,
         status: r.status(),
         hand_set: r.hand_set,
+        drafted: false,
         poses: r.poses(path)?,
     })
 }

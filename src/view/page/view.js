@@ -632,7 +632,7 @@ function drawTimeline(tl, at, hover) {
 // What the timeline says of frame i, in words.
 function frameReadout(tl, i) {
   const f = tl.frames[i], a = f.animator;
-  return `frame ${f.frame} (${f.status}${f.hand_set ? ", hand-set" : ""}): opening ${a.opening_deg.toFixed(1)}°, lateral ${a.lateral_mm.toFixed(2)} mm, protrusion ${a.protrusion_mm.toFixed(2)} mm`;
+  return `frame ${f.frame} (${f.status}${f.hand_set ? ", hand-set" : ""}${f.drafted ? ", moved and not saved" : ""}): opening ${a.opening_deg.toFixed(1)}°, lateral ${a.lateral_mm.toFixed(2)} mm, protrusion ${a.protrusion_mm.toFixed(2)} mm`;
 }
 function showFrame(tl, i) {
   const f = tl.frames[i];
@@ -729,6 +729,10 @@ async function flushEdits(tl) {
 // A frame as moved: its energy's terms against the saved poses', the jaw in the 3-D view.
 function showDraft(tl, d) {
   wb.draft = d;
+  const shown = tl.frames.find((f) => f.frame === d.frame);
+  if (shown) shown.drafted = d.drafted;
+  const i = Number($("scrub").value);
+  if (tl.frames[i] && tl.frames[i].frame === d.frame) $("timeline-readout").textContent = frameReadout(tl, i);
   const row = (name, key, digits) => `<tr><td>${name}</td>` + ["upper", "lower"].map((a) => {
     const now = d.terms[a][key], was = d.saved[a][key];
     return `<td>${now.toFixed(digits)}</td><td class="hint">${now === was ? "" : `was ${was.toFixed(digits)}`}</td>`;
