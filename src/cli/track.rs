@@ -66,7 +66,7 @@ pub struct TrackingArgs {
     /// The subject's own rig (`rig learn`'s or `envelope learn`'s, learned from this capture's
     /// tracks): the jaw is held to its manifold and ranges, and its poses are the jaw prior's
     /// starts, in place of the average joint's.
-    #[arg(long = "rig", id = "subject_rig")]
+    #[arg(long = "rig", id = "subject_rig", value_name = "RIG")]
     pub rig: Option<PathBuf>,
 }
 
