@@ -563,10 +563,10 @@ fn a_lost_frame_corrected_with_the_mouse_tracks_again_from_there() {
     assert!(!dir.path().join("tracks.retrack.json").exists());
 }
 
-/// The first pose picked with the mouse, for a take without init.json: four points clicked on
-/// each arch's model in the 3-D view and where the truth puts those vertices in two cameras'
-/// pictures; the page fits them, writes init.json in the format's bootstrap form, and the take
-/// tracks from it as it does from the true first pose.
+/// The first pose picked with the mouse, for a take without init.json (nor a rig): four points
+/// clicked on each arch's model in the 3-D view and where the truth puts those vertices in two
+/// cameras' pictures; the page fits them, writes init.json in the format's bootstrap form, and
+/// the take tracks from it as it does from the true first pose.
 #[test]
 fn a_first_pose_picked_by_clicks_tracks_like_init_json() {
     if !have_browser() {
@@ -582,12 +582,13 @@ fn a_first_pose_picked_by_clicks_tracks_like_init_json() {
     let capture = jawtrack::capture::Capture::open(&cap).unwrap();
     let truth = capture.gt_poses(0).unwrap();
 
-    let (_server, url) = serve(&[s(&f.rig), "--capture", s(&cap)]);
+    // A take with no rig yet: the page shows the capture alone.
+    let (_server, url) = serve(&["--capture", s(&cap)]);
     let b = Browser::start();
     b.go(&url);
     assert_eq!(
-        b.js("return document.getElementById('first-pose').hidden"),
-        json!(false)
+        b.js("return [document.getElementById('first-pose').hidden, document.querySelector('.rig-only').hidden, document.getElementById('rig-kind').textContent]"),
+        json!([false, true, "No rig: the capture alone"])
     );
     b.wait("return Array.from(document.querySelectorAll('#pictures img')).every((i) => i.complete && i.naturalWidth > 0)");
     b.js("document.getElementById('pick-mode').click(); window.scrollTo(0, 0)");

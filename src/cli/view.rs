@@ -15,8 +15,11 @@ use crate::cli::track::TrackingArgs;
 
 #[derive(clap::Args)]
 pub struct Args {
-    /// The rig file: `rig learn`'s, or `envelope learn`'s.
-    pub rig: PathBuf,
+    /// The rig file: `rig learn`'s, or `envelope learn`'s. Without one (a take with no rig
+    /// yet) the page shows the capture alone: its timeline and overlays, frames to correct,
+    /// the first pose to pick; no sliders.
+    #[arg(required_unless_present = "capture")]
+    pub rig: Option<PathBuf>,
     /// A capture: its meshes are drawn, the first pose can be picked on its pictures (written
     /// as init.json), and with --tracks its frames are on the timeline.
     #[arg(long)]
@@ -48,7 +51,11 @@ pub struct Args {
 }
 
 pub fn run(a: Args) -> anyhow::Result<()> {
-    let rig = crate::cli::args::load_rig(&a.rig)?;
+    let rig = a
+        .rig
+        .as_deref()
+        .map(crate::cli::args::load_rig)
+        .transpose()?;
     let mandible = a
         .mandible
         .as_deref()
@@ -107,7 +114,22 @@ pub fn run(a: Args) -> anyhow::Result<()> {
             (meshes, None, None)
         }
     };
-    let viewer = Viewer::new(rig, &a.rig, meshes, opened, tracked)?;
+    // Without a rig the timeline reads the tracked motion in the same units as `export`.
+    let motion = match (&rig, &opened, &a.tracks) {
+        (None, Some(capture), Some(path)) => {
+            let tracks: jawtrack::formats::TracksJson =
+                jawtrack::io::read_json(path, "tracks file")?;
+            Some(jawtrack::export::motion::tracked_motion(capture, &tracks, path, None)?.motion)
+        }
+        _ => None,
+    };
+    let viewer = Viewer::new(
+        rig.zip(a.rig.as_deref()),
+        motion,
+        meshes,
+        opened,
+        tracked,
+    )?;
     serve(&viewer, SocketAddr::new(a.host, a.port), |addr| {
         println!("jawtrack view: http://{addr}/ (Ctrl-C to stop)");
         let _ = std::io::stdout().flush();

@@ -38,8 +38,10 @@ pub const COARSE_TRIANGLES: usize = 2500;
 
 /// The page's questions are answered here.
 pub struct Viewer {
-    rig: Box<dyn ThreeParameterRig + Send + Sync>,
-    motion: MotionFrame,
+    /// The rig the sliders, IK and keys drive; `None`: the page shows the capture alone.
+    posing: Option<Posing>,
+    /// Animator units for the timeline: the rig's, or without one the tracked motion's.
+    motion: Option<MotionFrame>,
     pub meshes: Meshes,
     /// Each mesh with fewer triangles over the same vertices, drawn while anything moves.
     coarse: Meshes,
@@ -48,6 +50,12 @@ pub struct Viewer {
     /// The first pose last fitted from picked points, drawn over the pictures.
     fitted: Mutex<Option<ArchPoses>>,
     tracked: Option<Arc<Workbench>>,
+}
+
+/// A rig with what the page needs of it.
+struct Posing {
+    rig: Box<dyn ThreeParameterRig + Send + Sync>,
+    motion: MotionFrame,
     extent: Extent,
     rest: [f64; 3],
     /// The largest |parameter| a query may start from: the training poses' span, widened.
@@ -157,10 +165,10 @@ pub struct AnimationQuery {
 /// What the page loads first.
 #[derive(Debug, Clone, Serialize)]
 pub struct SceneReply {
-    /// The kind of rig ("NLPCA rig", "envelope rig").
-    pub rig: &'static str,
-    pub extent: Extent,
-    pub rest: PoseReply,
+    /// The kind of rig ("NLPCA rig", "envelope rig"); `None` without one (no sliders).
+    pub rig: Option<&'static str>,
+    pub extent: Option<Extent>,
+    pub rest: Option<PoseReply>,
     pub meshes: Vec<&'static str>,
     /// The capture's cameras and first frame, when one was given (the first pose is picked
     /// on its pictures).
@@ -230,7 +238,7 @@ pub struct TimelineFrame {
 pub struct DraftReply {
     #[serde(flatten)]
     pub draft: Draft,
-    pub animator: AnimatorJson,
+    pub animator: Option<AnimatorJson>,
 }
 
 /// A question the page asked that has no answer: its message goes back as the reply.
@@ -239,14 +247,42 @@ pub struct DraftReply {
 pub struct Refused(pub String);
 
 impl Viewer {
-    /// `rig_path` names the rig in errors. The rig must carry its jaw frame (animator units).
+    /// A rig (with its path, which names it in errors; it must carry its jaw frame, the
+    /// animator units), or without one `motion`, the units of the timeline.
     pub fn new(
-        rig: Box<dyn ThreeParameterRig + Send + Sync>,
-        rig_path: &Path,
+        rig: Option<(Box<dyn ThreeParameterRig + Send + Sync>, &Path)>,
+        motion: Option<MotionFrame>,
         meshes: Meshes,
         capture: Option<Arc<Capture>>,
         tracked: Option<Arc<Workbench>>,
     ) -> Result<Viewer> {
+        let posing = rig.map(|(rig, path)| Posing::new(rig, path)).transpose()?;
+        let coarse = |m: &Mesh| m.simplified(Simplify::MaxTriangles(COARSE_TRIANGLES));
+        let coarse = Meshes {
+            upper: meshes.upper.as_ref().map(coarse),
+            lower: coarse(&meshes.lower),
+            mandible: meshes.mandible.as_ref().map(coarse),
+        };
+        Ok(Viewer {
+            motion: posing.as_ref().map(|p| p.motion.clone()).or(motion),
+            posing,
+            meshes,
+            coarse,
+            capture,
+            fitted: Mutex::new(None),
+            tracked,
+        })
+    }
+
+    fn posing(&self) -> std::result::Result<&Posing, Refused> {
+        self.posing
+            .as_ref()
+            .ok_or_else(|| Refused("no rig was given (`jawtrack view RIG.json ...`)".into()))
+    }
+}
+
+impl Posing {
+    fn new(rig: Box<dyn ThreeParameterRig + Send + Sync>, rig_path: &Path) -> Result<Posing> {
         let motion = rig.motion_frame().ok_or_else(|| {
             Error::invalid(
                 rig_path,
@@ -280,20 +316,9 @@ impl Viewer {
                 .chain([&rest])
                 .flatten()
                 .fold(1.0f64, |m, v| m.max(v.abs()));
-        let coarse = |m: &Mesh| m.simplified(Simplify::MaxTriangles(COARSE_TRIANGLES));
-        let coarse = Meshes {
-            upper: meshes.upper.as_ref().map(coarse),
-            lower: coarse(&meshes.lower),
-            mandible: meshes.mandible.as_ref().map(coarse),
-        };
-        Ok(Viewer {
+        Ok(Posing {
             rig,
             motion,
-            meshes,
-            coarse,
-            capture,
-            fitted: Mutex::new(None),
-            tracked,
             extent,
             rest,
             param_bound,
@@ -324,6 +349,24 @@ impl Viewer {
         }
     }
 
+    /// A query's starting parameters, checked: finite and within the rig's reach.
+    fn start(&self, from: Option<&[f64; 3]>) -> std::result::Result<Option<[f64; 3]>, Refused> {
+        match from {
+            Some(d)
+                if d.iter()
+                    .any(|v| !v.is_finite() || v.abs() > self.param_bound) =>
+            {
+                Err(Refused(format!(
+                    "from: three finite parameters within ±{:.3} (the rig's own, as a reply gave them)",
+                    self.param_bound
+                )))
+            }
+            other => Ok(other.copied()),
+        }
+    }
+}
+
+impl Viewer {
     pub fn scene(&self) -> SceneReply {
         let mut meshes = vec!["lower"];
         if self.meshes.upper.is_some() {
@@ -333,9 +376,9 @@ impl Viewer {
             meshes.push("mandible");
         }
         SceneReply {
-            rig: self.rig.kind(),
-            extent: self.extent.clone(),
-            rest: self.reply(self.rest, true),
+            rig: self.posing.as_ref().map(|p| p.rig.kind()),
+            extent: self.posing.as_ref().map(|p| p.extent.clone()),
+            rest: self.posing.as_ref().map(|p| p.reply(p.rest, true)),
             meshes,
             capture: self.capture.as_ref().map(|c| {
                 let first = c.frames().start;
@@ -361,30 +404,15 @@ impl Viewer {
         if q.target.iter().any(|v| !v.is_finite() || v.abs() > 1e3) {
             return Err(Refused("target: three finite numbers, |v| ≤ 1000".into()));
         }
-        let from = self.start(q.from.as_ref())?.unwrap_or(self.rest);
+        let p = self.posing()?;
+        let from = p.start(q.from.as_ref())?.unwrap_or(p.rest);
         // Where the rig cannot reach the values, the pose it comes nearest to is shown.
         Ok(
-            match nearest_animator(&*self.rig, &self.motion, &q.target, from) {
-                Some((d, miss)) if d.iter().all(|v| v.is_finite()) => self.reply(d, miss < 1e-3),
-                _ => self.reply(from, false),
+            match nearest_animator(&*p.rig, &p.motion, &q.target, from) {
+                Some((d, miss)) if d.iter().all(|v| v.is_finite()) => p.reply(d, miss < 1e-3),
+                _ => p.reply(from, false),
             },
         )
-    }
-
-    /// A query's starting parameters, checked: finite and within the rig's reach.
-    fn start(&self, from: Option<&[f64; 3]>) -> std::result::Result<Option<[f64; 3]>, Refused> {
-        match from {
-            Some(d)
-                if d.iter()
-                    .any(|v| !v.is_finite() || v.abs() > self.param_bound) =>
-            {
-                Err(Refused(format!(
-                    "from: three finite parameters within ±{:.3} (the rig's own, as a reply gave them)",
-                    self.param_bound
-                )))
-            }
-            other => Ok(other.copied()),
-        }
     }
 
     /// IK (Eq. 10): the valid parameters that bring the vertex closest to the target.
@@ -412,11 +440,12 @@ impl Viewer {
                 "target: three finite numbers, |v| ≤ {MAX_TARGET_MM} mm"
             )));
         }
-        let from = self.start(Some(&q.from))?.unwrap_or(self.rest);
+        let posing = self.posing()?;
+        let from = posing.start(Some(&q.from))?.unwrap_or(posing.rest);
         let point = Vector3::new(p[0] as f64, p[1] as f64, p[2] as f64);
         let started = Instant::now();
         let r = crate::rig::ik::solve(
-            &*self.rig,
+            &*posing.rig,
             &point,
             &Vector3::from(q.target),
             &from,
@@ -425,7 +454,7 @@ impl Viewer {
         .map_err(|e| Refused(e.to_string()))?;
         let milliseconds = started.elapsed().as_secs_f64() * 1e3;
         Ok(IkReply {
-            pose: self.reply(r.params, r.residual_mm <= IK_REACHED_MM),
+            pose: posing.reply(r.params, r.residual_mm <= IK_REACHED_MM),
             residual_mm: r.residual_mm,
             evaluations: r.evaluations,
             milliseconds,
@@ -448,7 +477,7 @@ impl Viewer {
             )));
         }
         let frames =
-            animate_animator(&*self.rig, &q.keys, q.fps).map_err(|e| Refused(e.to_string()))?;
+            animate_animator(&*self.posing()?.rig, &q.keys, q.fps).map_err(|e| Refused(e.to_string()))?;
         let keys = gltf::keys_of(&frames, q.fps);
         let m = &self.meshes;
         let upper = m.upper.as_ref().map(|u| gltf::Part {
@@ -567,6 +596,7 @@ impl Viewer {
     /// The tracked frames as they now are.
     pub fn timeline(&self) -> Option<Timeline> {
         let t = self.tracked.as_ref()?;
+        let motion = self.motion.as_ref()?;
         let (frames, version) = t.frames();
         Some(Timeline {
             cameras: t
@@ -584,7 +614,7 @@ impl Viewer {
                         status: f.status.as_str(),
                         hand_set: f.hand_set,
                         drafted: f.drafted,
-                        animator: self.motion.measure(&jaw).into(),
+                        animator: motion.measure(&jaw).into(),
                         jaw: jaw.column_major(),
                     }
                 })
@@ -602,7 +632,7 @@ impl Viewer {
         let draft = d.map_err(Refused)?;
         let jaw = draft.poses.jaw();
         Ok(DraftReply {
-            animator: self.motion.measure(&jaw).into(),
+            animator: self.motion.as_ref().map(|m| m.measure(&jaw).into()),
             draft,
         })
     }

@@ -393,7 +393,7 @@ canvas.addEventListener("mousedown", (e) => {
       return;
     }
   }
-  const hit = pick(e.offsetX, e.offsetY);
+  const hit = view.scene && view.scene.rig ? pick(e.offsetX, e.offsetY) : null;
   if (hit) {
     drag = { part: hit.part, vertex: hit.vertex, start: posed(hit.part, hit.vertex), target: null };
     canvas.style.cursor = "move";
@@ -950,7 +950,9 @@ async function start() {
   setupProgram();
   const scene = await (await ask("/api/scene")).json();
   view.scene = scene;
-  $("rig-kind").textContent = `Rig: the ${scene.rig}`;
+  $("rig-kind").textContent = scene.rig ? `Rig: the ${scene.rig}` : "No rig: the capture alone";
+  // Without a rig there is nothing for the sliders, IK and keys to drive.
+  for (const el of document.querySelectorAll(".rig-only")) el.hidden = !scene.rig;
   for (const name of scene.meshes) state.meshes[name] = await loadMesh(name);
   // Look at the teeth: the centre and size of the arches.
   const all = [state.meshes.upper, state.meshes.lower].filter(Boolean);
@@ -960,9 +962,11 @@ async function start() {
       for (let k = 0; k < 3; k++) { lo[k] = Math.min(lo[k], m.positions[i + k]); hi[k] = Math.max(hi[k], m.positions[i + k]); }
   state.orbit.target = [0, 1, 2].map((k) => (lo[k] + hi[k]) / 2);
   state.orbit.dist = 2.2 * Math.hypot(hi[0] - lo[0], hi[1] - lo[1], hi[2] - lo[2]);
-  const ex = scene.extent, ranges = [ex.opening_deg, ex.lateral_mm, ex.protrusion_mm];
-  NAMES.forEach((n, i) => { $(n).min = ranges[i][0]; $(n).max = ranges[i][1]; });
-  apply(scene.rest, { setSliders: true });
+  if (scene.rig) {
+    const ex = scene.extent, ranges = [ex.opening_deg, ex.lateral_mm, ex.protrusion_mm];
+    NAMES.forEach((n, i) => { $(n).min = ranges[i][0]; $(n).max = ranges[i][1]; });
+    apply(scene.rest, { setSliders: true });
+  } else draw();
   if (scene.timeline) setupTimeline(scene.timeline);
   if (scene.capture) setupFirstPose(scene.capture);
   // `?opening=12&lateral=1&protrusion=2` opens the page at that pose (a link to a pose).
