@@ -123,13 +123,7 @@ pub fn run(a: Args) -> anyhow::Result<()> {
         }
         _ => None,
     };
-    let viewer = Viewer::new(
-        rig.zip(a.rig.as_deref()),
-        motion,
-        meshes,
-        opened,
-        tracked,
-    )?;
+    let viewer = Viewer::new(rig.zip(a.rig.as_deref()), motion, meshes, opened, tracked)?;
     serve(&viewer, SocketAddr::new(a.host, a.port), |addr| {
         println!("jawtrack view: http://{addr}/ (Ctrl-C to stop)");
         let _ = std::io::stdout().flush();

@@ -476,8 +476,8 @@ impl Viewer {
                 span * q.fps
             )));
         }
-        let frames =
-            animate_animator(&*self.posing()?.rig, &q.keys, q.fps).map_err(|e| Refused(e.to_string()))?;
+        let frames = animate_animator(&*self.posing()?.rig, &q.keys, q.fps)
+            .map_err(|e| Refused(e.to_string()))?;
         let keys = gltf::keys_of(&frames, q.fps);
         let m = &self.meshes;
         let upper = m.upper.as_ref().map(|u| gltf::Part {
