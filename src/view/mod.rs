@@ -11,6 +11,7 @@
 
 mod first_pose;
 mod page;
+mod pictures;
 mod scene;
 mod server;
 mod workbench;
