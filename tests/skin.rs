@@ -8,11 +8,14 @@ use std::path::{Path, PathBuf};
 use std::sync::OnceLock;
 
 use common::assert_mentions;
+use jawtrack::skin::carry::LADDER;
+use jawtrack::skin::carry::retarget_to;
 use jawtrack::skin::eval::evaluate;
 use jawtrack::skin::format::FaceSequence;
-use jawtrack::skin::model::{SkinSettings, learn_single, retarget_to};
+use jawtrack::skin::model::{SkinModel, SkinSettings, learn_multi, learn_single, skin_points};
 use jawtrack::skin::regress::RegressSettings;
-use jawtrack::skin::subject::Subject;
+use jawtrack::skin::retarget::RetargetSettings;
+use jawtrack::skin::subject::{Subject, bone_point_error};
 use jawtrack::synth::face::{FaceSynthOptions, generate_faces};
 
 /// Three subjects of 240 frames, written once per test binary.
@@ -271,8 +274,93 @@ fn a_model_predicts_its_own_subject_and_survives_a_round_trip_through_its_file()
     // Retargeting to another subject lowers the error on its calibration poses.
     let t = load("s1");
     let (r, report) = retarget_to(&m, &t, &quick().retarget).unwrap();
-    assert!(report.cost_after < report.cost_before * 0.5, "{report:?}");
     assert_eq!(r.subject.name, "s1");
+    let uncalibrated = retarget_to(
+        &m,
+        &t,
+        &RetargetSettings {
+            iterations: 0,
+            ..quick().retarget
+        },
+    )
+    .unwrap()
+    .0;
+    assert!(
+        calibration_error(&r, &t) < 0.5 * calibration_error(&uncalibrated, &t),
+        "{report:?}"
+    );
+}
+
+/// The mean bone point error (mm) of `m` on `s`'s calibration poses.
+fn calibration_error(m: &SkinModel, s: &Subject) -> f64 {
+    let cal = s.calibration_indices().unwrap();
+    cal.iter()
+        .map(|&(_, i)| {
+            bone_point_error(
+                &s.bone,
+                &m.predict(&s.skin_features(&m.skin_points, i)),
+                &s.jaw[i].unwrap(),
+            )
+        })
+        .sum::<f64>()
+        / cal.len() as f64
+}
+
+#[test]
+fn a_multi_subject_model_carries_its_sources_through_its_file() {
+    let (s1, s2, s3) = (load("s1"), load("s2"), load("s3"));
+    let points = skin_points(&s1, &quick()).unwrap();
+    let own: Vec<SkinModel> = [&s1, &s2]
+        .iter()
+        .map(|s| {
+            let rows: Vec<usize> = (0..s.frames.len()).collect();
+            learn_single(s, Some(points.clone()), &rows, &quick()).unwrap()
+        })
+        .collect();
+    let (pooled, _) = learn_multi(&[&s1, &s2], Some(points), Some(&own[0]), &quick()).unwrap();
+    let m = pooled.with_sources(vec![("s1".into(), &own[0]), ("s2".into(), &own[1])]);
+    assert_eq!(m.mappings().len(), 3);
+    let (r, report) = retarget_to(&m, &s3, &quick().retarget).unwrap();
+    // Every rung of all three mappings is scored; the blend keeps those that count, weights
+    // summing to one, and beats each mapping uncalibrated on the calibration poses.
+    assert_eq!(report.candidates.len(), 3 * LADDER.len());
+    assert!(!r.subject.blend.is_empty());
+    let total: f64 = r.subject.blend.iter().map(|t| t.weight).sum();
+    assert!((total - 1.0).abs() < 1e-9, "{total}");
+    let plain = RetargetSettings {
+        iterations: 0,
+        ..quick().retarget
+    };
+    let uncalibrated = retarget_to(&m, &s3, &plain).unwrap().0;
+    assert!(calibration_error(&r, &s3) < calibration_error(&uncalibrated, &s3));
+    // Through its file: the same predictions.
+    let tmp = tempfile::tempdir().unwrap();
+    let path = tmp.path().join("multi.json");
+    jawtrack::io::write_json_atomic(&path, &r).unwrap();
+    let back = SkinModel::read(&path).unwrap();
+    assert_eq!(back.format, "jawtrack-skin-model/2");
+    let f = s3.skin_features(&r.skin_points, 40);
+    assert_eq!(r.predict(&f), back.predict(&f));
+    // A blend that names a mapping the model lacks, or whose weights do not sum to one, is
+    // refused by field.
+    edit_json(&path, |v| v["subject"]["blend"][0]["mapping"] = 7.into());
+    let e = SkinModel::read(&path).unwrap_err().to_string();
+    assert_mentions(&e, &["multi.json", "subject.blend[0]", "mapping 7"]);
+    jawtrack::io::write_json_atomic(&path, &r).unwrap();
+    edit_json(&path, |v| {
+        let w = v["subject"]["blend"][0]["weight"].as_f64().unwrap();
+        v["subject"]["blend"][0]["weight"] = (w * 0.5).into();
+    });
+    let e = SkinModel::read(&path).unwrap_err().to_string();
+    assert_mentions(&e, &["multi.json", "subject.blend", "sum to"]);
+    // A model in the earlier format (one mapping, one set of transforms) is still read.
+    jawtrack::io::write_json_atomic(&path, &own[1]).unwrap();
+    edit_json(&path, |v| {
+        v["format"] = "jawtrack-skin-model/1".into();
+        v.as_object_mut().unwrap().remove("sources");
+    });
+    let old = SkinModel::read(&path).unwrap();
+    assert_eq!(old.predict(&f), own[1].predict(&f));
 }
 
 /// The mean error (mm) of the frames `skin fill` predicted, on subject s2 tracked right where

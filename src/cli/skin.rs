@@ -5,9 +5,10 @@ use std::time::Instant;
 
 use anyhow::Context;
 use jawtrack::io::write_json_atomic;
+use jawtrack::skin::carry::retarget_to;
 use jawtrack::skin::eval::{Evaluation, evaluate};
 use jawtrack::skin::format::{FaceSequence, subject_dirs};
-use jawtrack::skin::model::{SkinModel, SkinSettings, learn_multi, learn_single, retarget_to};
+use jawtrack::skin::model::{SkinModel, SkinSettings, learn_multi, learn_single, skin_points};
 use jawtrack::skin::subject::Subject;
 
 #[derive(clap::Subcommand)]
@@ -196,8 +197,24 @@ fn learn(
         let rows: Vec<usize> = (0..n).collect();
         learn_single(s, None, &rows, &settings)?
     } else {
+        // The pooled mapping, and every subject's own beside it for retargeting to weigh.
         let refs: Vec<&Subject> = subjects.iter().collect();
-        learn_multi(&refs, None, None, &settings)?.0
+        let points = skin_points(&subjects[0], &settings)?;
+        let own = subjects
+            .iter()
+            .map(|s| {
+                let rows: Vec<usize> = (0..s.frames.len()).collect();
+                learn_single(s, Some(points.clone()), &rows, &settings)
+            })
+            .collect::<jawtrack::error::Result<Vec<_>>>()?;
+        let (pooled, _) = learn_multi(&refs, Some(points), Some(&own[0]), &settings)?;
+        pooled.with_sources(
+            subjects
+                .iter()
+                .zip(&own)
+                .map(|(s, m)| (s.name.clone(), m))
+                .collect(),
+        )
     };
     write_json_atomic(out, &model)?;
     let r = &model.regressor;
@@ -260,35 +277,46 @@ fn retarget(
     };
     write_json_atomic(out, &r)?;
     println!(
-        "retargeted to {}: Σ|Φ − B|² {:.3} → {:.3} mm² in {} steps",
-        target.name, report.cost_before, report.cost_after, report.iterations
+        "retargeted to {}: the best-scored way ({}) takes Σ|Φ − B|² {:.3} → {:.3} mm² in {} steps",
+        target.name, report.carried, report.cost_before, report.cost_after, report.iterations
     );
     print_choice(&report);
     println!("wrote {}", out.display());
     Ok(())
 }
 
-/// Say how far the mapping was carried and, when the calibration poses chose, what each
-/// candidate scored on the poses left out.
+/// Say how the mapping was carried: every way's (and mapping's) score on the calibration
+/// poses left out, and its weight in the blend.
 fn print_choice(report: &jawtrack::skin::retarget::RetargetReport) {
-    let scores: Vec<String> = report
+    let scored: Vec<_> = report
         .candidates
         .iter()
-        .map(|c| format!("{} {:.3} ± {:.3}", c.carry, c.mm, c.standard_error_mm))
+        .filter(|c| c.mm.is_finite())
         .collect();
-    match scores.len() {
-        0 => println!("carried: {}", report.carried),
-        1 => println!(
-            "carried: {} (the paper's; choosing needs {} calibration poses or more); bone points on the poses left out: {} mm",
-            report.carried,
-            jawtrack::skin::retarget::MIN_CHOOSING_POSES,
-            scores[0]
-        ),
-        _ => println!(
-            "carried: {}, the best of (bone points on the calibration poses left out, mm) {}",
-            report.carried,
-            scores.join(", ")
-        ),
+    if scored.len() < 2 {
+        let score = scored
+            .first()
+            .map(|c| {
+                format!(
+                    ", bone points on the calibration poses left out {:.3} mm",
+                    c.mm
+                )
+            })
+            .unwrap_or_default();
+        println!("carried: {}{score}", report.carried);
+        return;
+    }
+    println!("carried by a blend: bone points on the calibration poses left out (mm), weight");
+    for c in scored {
+        let weight = report
+            .blend
+            .iter()
+            .find(|b| b.0 == c.carry)
+            .map_or(0.0, |b| b.1);
+        println!(
+            "  {:<44} {:.3} ± {:.3}  {weight:.2}",
+            c.carry, c.mm, c.standard_error_mm
+        );
     }
 }
 
@@ -437,7 +465,7 @@ fn print_table(e: &Evaluation) {
             .map(|(n, mm)| format!("{n}: {mm:.3}"))
             .collect();
         println!(
-            "{}: best source carried {}; pooled mapping {:.3} mm, carried {}; multi-subject weights {}; with more calibration poses {}",
+            "{}: best source's best rung {}; pooled mapping {:.3} mm (best rung {}); multi-subject weights {}; with more calibration poses {}",
             s.name,
             s.retargeted_carried,
             s.pooled_mm,

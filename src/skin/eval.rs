@@ -8,10 +8,9 @@ use std::time::Instant;
 use serde::Serialize;
 
 use super::baseline::baseline_jaw;
+use super::carry::{Carried, blended, carry_mappings, retarget_on};
 use super::features::SkinPoint;
-use super::model::{
-    SkinModel, SkinSettings, learn_multi, learn_single, retarget_on, skin_points, spaced,
-};
+use super::model::{SkinModel, SkinSettings, learn_multi, learn_single, skin_points, spaced};
 use super::retarget::{CandidateScore, RetargetSettings};
 use super::subject::{Subject, bone_point_error};
 use crate::error::{Error, Result};
@@ -235,13 +234,22 @@ fn score_subject(
     let members = retarget_sources(fold, sources, &target.calibration_indices()?)?;
     let retargeted = score_sources(target, &members, &all, &features);
     let pooled_mapping = pooled_mapping(fold, sources)?;
-    let pooled = pooled_member(fold, &pooled_mapping, &target.calibration_indices()?)?;
+    let calibration: Vec<usize> = target
+        .calibration_indices()?
+        .into_iter()
+        .map(|c| c.1)
+        .collect();
+    let pooled = member(
+        "pooled",
+        &pooled_mapping,
+        target,
+        &calibration,
+        fold.settings,
+    )?;
     let pooled_sc = score(target, &all, &|i| pooled.model.predict(&features[i]));
-    let mut multi = members.clone();
-    multi.push(pooled.clone());
-    let weights = member_weights(&multi);
-    let multi_sc = score(target, &all, &|i| combined(&multi, &weights, &features[i]));
-    let mut curve = vec![(5, mean(&multi_sc.mm))];
+    let multi = multi_subject(fold, sources, &pooled_mapping, &pooled, &members)?;
+    let multi_sc = score(target, &all, &|i| multi.predict(&features[i]));
+    let mut curve = vec![(calibration.len(), mean(&multi_sc.mm))];
     if fold.curve {
         curve.extend(calibration_curve(
             fold,
@@ -286,11 +294,7 @@ fn score_subject(
         uncalibrated_mm: retargeted.uncalibrated,
         multi_subject_mm: mean(&multi_sc.mm),
         multi_subject_bone_mm: mean(&multi_sc.bone),
-        multi_subject_weights: multi
-            .iter()
-            .zip(&weights)
-            .map(|(m, w)| (m.name.clone(), *w))
-            .collect(),
+        multi_subject_weights: weights_by_mapping(&multi),
         pooled_mm: mean(&pooled_sc.mm),
         pooled_carried: pooled.carried,
         calibration_curve: curve,
@@ -327,8 +331,9 @@ fn score_single(
     Ok((single, features))
 }
 
-/// A mapping carried to the target: retargeted, uncalibrated, and its score on the
-/// calibration poses left out (mm, of the rung taken).
+/// A mapping carried to the target: retargeted (its rungs blended), uncalibrated, the best
+/// rung and every rung's score on the calibration poses left out, and the rungs themselves
+/// (for the multi-subject blend).
 #[derive(Clone)]
 struct Member {
     name: String,
@@ -336,7 +341,7 @@ struct Member {
     plain: SkinModel,
     carried: String,
     candidates: Vec<CandidateScore>,
-    held_out_mm: f64,
+    rungs: Carried,
 }
 
 fn member(
@@ -355,19 +360,16 @@ fn member(
             ..s.retarget
         },
     )?;
-    let (model, report) = retarget_on(m, target, frames, &s.retarget)?;
-    let held_out_mm = report
-        .candidates
-        .iter()
-        .find(|c| c.carry == report.carried)
-        .map_or(f64::NAN, |c| c.mm);
+    let carried = carry_mappings(m, target, frames, &s.retarget)?;
+    let rungs = carried[0].clone();
+    let (model, report) = blended(m, target, carried)?;
     Ok(Member {
         name: name.into(),
         model,
         plain,
         carried: report.carried,
         candidates: report.candidates,
-        held_out_mm,
+        rungs,
     })
 }
 
@@ -452,42 +454,40 @@ fn pooled_mapping(fold: &Fold, sources: &[Option<SkinModel>]) -> Result<SkinMode
     Ok(multi)
 }
 
-/// The pooled mapping carried to the target from the calibration frames `calibration`.
-fn pooled_member(fold: &Fold, pooled: &SkinModel, calibration: &[(&str, usize)]) -> Result<Member> {
-    let frames: Vec<usize> = calibration.iter().map(|c| c.1).collect();
-    member("pooled", pooled, fold.target, &frames, fold.settings)
-}
-
-/// Each member's weight: the inverse square of its error on the calibration poses left out,
-/// normalised (a member that cannot be scored gets none).
-fn member_weights(members: &[Member]) -> Vec<f64> {
-    let raw: Vec<f64> = members
+/// The multi-subject mapping: the pooled mapping with every source's own beside it, each
+/// carried by every rung, all blended by their scores on the calibration poses left out.
+fn multi_subject(
+    fold: &Fold,
+    sources: &[Option<SkinModel>],
+    pooled_mapping: &SkinModel,
+    pooled: &Member,
+    members: &[Member],
+) -> Result<SkinModel> {
+    let own: Vec<(String, &SkinModel)> = members
         .iter()
         .map(|m| {
-            if m.held_out_mm.is_finite() && m.held_out_mm > 0.0 {
-                1.0 / (m.held_out_mm * m.held_out_mm)
-            } else {
-                0.0
-            }
+            let k = fold
+                .subjects
+                .iter()
+                .position(|s| s.name == m.name)
+                .expect("a member is a subject");
+            (m.name.clone(), sources[k].as_ref().expect("learned"))
         })
         .collect();
-    let sum: f64 = raw.iter().sum();
-    if sum > 0.0 {
-        raw.iter().map(|w| w / sum).collect()
-    } else {
-        vec![1.0 / members.len() as f64; members.len()]
-    }
+    let model = pooled_mapping.clone().with_sources(own);
+    let carried = std::iter::once(pooled.rungs.clone())
+        .chain(members.iter().map(|m| m.rungs.clone()))
+        .collect();
+    Ok(blended(&model, fold.target, carried)?.0)
 }
 
-/// The weighted mean of the members' bone features, as one jaw pose.
-fn combined(members: &[Member], weights: &[f64], features: &[f64]) -> Pose {
-    let mut b = vec![0.0; 15];
-    for (m, w) in members.iter().zip(weights) {
-        for (acc, v) in b.iter_mut().zip(m.model.predict_bone(features)) {
-            *acc += w * v;
-        }
+/// The weight of each mapping of a blended model, its rungs' summed.
+fn weights_by_mapping(m: &SkinModel) -> Vec<(String, f64)> {
+    let mut out: Vec<(String, f64)> = m.mappings().into_iter().map(|(n, _)| (n, 0.0)).collect();
+    for t in &m.subject.blend {
+        out[t.mapping].1 += t.weight;
     }
-    members[0].model.jaw_from_bone(&b)
+    out
 }
 
 /// The numbers of calibration poses the curve is measured at, beyond the five.
@@ -498,7 +498,7 @@ pub const CALIBRATION_COUNTS: [usize; 2] = [10, 24];
 fn calibration_curve(
     fold: &Fold,
     sources: &mut [Option<SkinModel>],
-    pooled: &SkinModel,
+    pooled_mapping: &SkinModel,
     all: &[usize],
     features: &[Vec<f64>],
 ) -> Result<Vec<(usize, f64)>> {
@@ -514,12 +514,11 @@ fn calibration_curve(
                 frames.push(("spread", i));
             }
         }
-        let mut members = retarget_sources(fold, sources, &frames)?;
-        members.push(pooled_member(fold, pooled, &frames)?);
-        let weights = member_weights(&members);
-        let sc = score(fold.target, all, &|i| {
-            combined(&members, &weights, &features[i])
-        });
+        let members = retarget_sources(fold, sources, &frames)?;
+        let cal: Vec<usize> = frames.iter().map(|f| f.1).collect();
+        let pooled = member("pooled", pooled_mapping, fold.target, &cal, fold.settings)?;
+        let multi = multi_subject(fold, sources, pooled_mapping, &pooled, &members)?;
+        let sc = score(fold.target, all, &|i| multi.predict(&features[i]));
         out.push((frames.len(), mean(&sc.mm)));
     }
     Ok(out)

@@ -9,7 +9,8 @@ use std::path::Path;
 use nalgebra::Vector3;
 use serde::Serialize;
 
-use super::model::{SkinModel, retarget_on};
+use super::carry::retarget_on;
+use super::model::SkinModel;
 use super::retarget::{RetargetReport, RetargetSettings};
 use super::subject::{Subject, bone_point_error};
 use crate::error::{Error, Result};

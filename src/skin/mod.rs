@@ -3,10 +3,13 @@
 //!
 //! [`format`] reads face sequences; [`features`] turns skin and jaw into the paper's features;
 //! [`regress`] learns the mapping; [`predictor`] turns a prediction into a jaw pose;
-//! [`retarget`] carries a mapping to a new subject; [`baseline`] is the paper's comparison;
+//! [`retarget`] solves the paper's transforms that carry a mapping to a new subject, and
+//! [`carry`] blends every way of carrying every mapping a model holds; [`baseline`] is the
+//! paper's comparison;
 //! [`eval`] scores them all.
 
 pub mod baseline;
+pub mod carry;
 pub mod eval;
 pub mod features;
 pub mod fill;

@@ -8,9 +8,7 @@ use serde::{Deserialize, Serialize};
 
 use super::features::{FeatureSettings, SkinPoint, choose_skin_points};
 use super::regress::{RegressSettings, Regressor};
-use super::retarget::{
-    FeatureTransform, RetargetReport, RetargetSettings, align_globally, apply, retarget_chosen,
-};
+use super::retarget::{FeatureTransform, RetargetReport, RetargetSettings, align_globally, apply};
 use super::subject::{Subject, jaw_from_bone};
 use crate::error::{Error, Result};
 use crate::formats::PoseJson;
@@ -19,7 +17,10 @@ use crate::geometry::Pose;
 /// A subject's rows of skin features and of bone features.
 type FramesXY = (Vec<Vec<f64>>, Vec<Vec<f64>>);
 
-pub const MODEL_FORMAT: &str = "jawtrack-skin-model/1";
+pub const MODEL_FORMAT: &str = "jawtrack-skin-model/2";
+
+/// The earlier format, still read: one mapping, carried by one set of transforms.
+pub const MODEL_FORMAT_1: &str = "jawtrack-skin-model/1";
 
 /// Everything learning and retargeting can be told (`--settings FILE`, JSON; absent fields
 /// keep their defaults).
@@ -37,9 +38,36 @@ pub struct SubjectFit {
     pub name: String,
     pub rest: PoseJson,
     pub bone_points: [[f64; 3]; 5],
-    /// Per skin feature (or one for all), applied before Φ; empty: none.
+    /// Per skin feature (or one for all), applied before Φ; empty: none. Used where `blend`
+    /// is empty.
     #[serde(default, skip_serializing_if = "Vec::is_empty")]
     pub transforms: Vec<FeatureTransform>,
+    /// The mapping as carried to this subject: the weighted mean of the bone features each
+    /// term predicts (its mapping after its transforms). Empty: `regressor` after
+    /// `transforms`.
+    #[serde(default, skip_serializing_if = "Vec::is_empty")]
+    pub blend: Vec<BlendTerm>,
+}
+
+/// One mapping of a model carried one way, and its weight.
+#[derive(Debug, Clone, Serialize, Deserialize)]
+pub struct BlendTerm {
+    /// 0: the model's `regressor`; k: its `sources[k - 1]`.
+    pub mapping: usize,
+    /// The rung of the retargeting ladder ("none", "global", …).
+    pub carry: String,
+    pub weight: f64,
+    /// Per skin feature, one for all, or none.
+    #[serde(default, skip_serializing_if = "Vec::is_empty")]
+    pub transforms: Vec<FeatureTransform>,
+}
+
+/// A further mapping of a multi-subject model: one source subject's own, on the same skin
+/// points.
+#[derive(Debug, Clone, Serialize, Deserialize)]
+pub struct SourceMapping {
+    pub name: String,
+    pub regressor: Regressor,
 }
 
 #[derive(Debug, Clone, Serialize, Deserialize)]
@@ -51,17 +79,23 @@ pub struct SkinModel {
     pub skin_points: Vec<SkinPoint>,
     pub settings: SkinSettings,
     pub trained_on: Vec<String>,
+    /// Φ: the one subject's mapping, or the paper's pooled multi-subject mapping.
     pub regressor: Regressor,
+    /// A multi-subject model's sources, each its own subject's mapping; retargeting weighs
+    /// them with `regressor` by how well each predicts the new subject's calibration poses.
+    #[serde(default, skip_serializing_if = "Vec::is_empty")]
+    pub sources: Vec<SourceMapping>,
     pub subject: SubjectFit,
 }
 
 impl SubjectFit {
-    fn of(s: &Subject, rest: &Pose) -> SubjectFit {
+    pub(crate) fn of(s: &Subject, rest: &Pose) -> SubjectFit {
         SubjectFit {
             name: s.name.clone(),
             rest: PoseJson::from(rest),
             bone_points: s.bone.map(|p| [p.x, p.y, p.z]),
             transforms: Vec::new(),
+            blend: Vec::new(),
         }
     }
 
@@ -86,8 +120,55 @@ impl SkinModel {
     /// The bone features (the five bone points' displacements from rest, mm) for a frame's
     /// skin features.
     pub fn predict_bone(&self, features: &[f64]) -> Vec<f64> {
-        self.regressor
-            .predict(&apply(&self.subject.transforms, features))
+        if self.subject.blend.is_empty() {
+            return self
+                .regressor
+                .predict(&apply(&self.subject.transforms, features));
+        }
+        let mut b = vec![0.0; 15];
+        for t in &self.subject.blend {
+            let p = self
+                .mapping(t.mapping)
+                .predict(&apply(&t.transforms, features));
+            for (acc, v) in b.iter_mut().zip(p) {
+                *acc += t.weight * v;
+            }
+        }
+        b
+    }
+
+    /// Mapping `k`: 0 the model's `regressor`, k its `sources[k - 1]`.
+    fn mapping(&self, k: usize) -> &Regressor {
+        match k {
+            0 => &self.regressor,
+            k => &self.sources[k - 1].regressor,
+        }
+    }
+
+    /// Every mapping with its name: the model's own (named for what it was trained on), then
+    /// its sources'.
+    pub fn mappings(&self) -> Vec<(String, &Regressor)> {
+        let own = if self.sources.is_empty() {
+            self.trained_on.join("+")
+        } else {
+            "pooled".to_string()
+        };
+        std::iter::once((own, &self.regressor))
+            .chain(self.sources.iter().map(|s| (s.name.clone(), &s.regressor)))
+            .collect()
+    }
+
+    /// This (multi-subject) model with each source subject's own mapping beside the pooled
+    /// one, for retargeting to weigh. Each must be on this model's skin points.
+    pub fn with_sources(mut self, sources: Vec<(String, &SkinModel)>) -> SkinModel {
+        self.sources = sources
+            .into_iter()
+            .map(|(name, m)| SourceMapping {
+                name,
+                regressor: m.regressor.clone(),
+            })
+            .collect();
+        self
     }
 
     /// The jaw pose of the model's subject whose bone points moved by `b`.
@@ -122,74 +203,84 @@ impl SkinModel {
         Ok(())
     }
 
-    /// Read and check a model file.
+    /// Read and check a model file (this format or the earlier one).
     pub fn read(path: &std::path::Path) -> Result<SkinModel> {
-        let m: SkinModel = crate::io::read_json(path, "skin model")?;
-        if m.format != MODEL_FORMAT {
+        let mut m: SkinModel = crate::io::read_json(path, "skin model")?;
+        if m.format != MODEL_FORMAT && m.format != MODEL_FORMAT_1 {
             return Err(Error::invalid(
                 path,
                 "format",
-                format!("is `{}`, expected `{MODEL_FORMAT}`", m.format),
+                format!(
+                    "is `{}`, expected `{MODEL_FORMAT}` (or `{MODEL_FORMAT_1}`)",
+                    m.format
+                ),
             ));
         }
+        m.format = MODEL_FORMAT.into();
         m.subject.rest.to_pose(path, "subject.rest")?;
-        let dim = m.skin_points.len() * 3;
-        let r = &m.regressor;
-        let bad = m
-            .skin_points
+        let damaged = |field: String, what: &str| {
+            Error::invalid(
+                path,
+                &field,
+                format!("{what} (a damaged or hand-edited model)"),
+            )
+        };
+        if m.skin_points
             .iter()
             .any(|p| p.triangle as usize >= m.skin_triangles)
-            || r.mean.len() != dim
-            || r.basis.iter().any(|b| b.len() != dim)
-            || r.support.iter().any(|s| s.len() != r.basis.len())
-            || r.outputs.len() != 15
-            || r.outputs.iter().any(|o| o.alpha.len() != r.support.len())
-            || r.width.is_nan()
-            || r.width <= 0.0;
-        if bad {
-            return Err(Error::invalid(
-                path,
-                "regressor",
-                "its sizes do not agree with one another (a damaged or hand-edited model)",
+        {
+            return Err(damaged(
+                "skin_points".into(),
+                "names a triangle the topology does not have",
             ));
         }
-        let numbers = r
-            .mean
+        let dim = m.skin_points.len() * 3;
+        let fields = std::iter::once("regressor".to_string())
+            .chain((0..m.sources.len()).map(|k| format!("sources[{k}].regressor")));
+        for ((_, r), field) in m.mappings().into_iter().zip(fields) {
+            if !regressor_fits(r, dim) {
+                return Err(damaged(field, "its sizes do not agree with one another"));
+            }
+            if !regressor_numbers(r).all(f64::is_finite) {
+                return Err(damaged(field, "holds a number that is not finite"));
+            }
+        }
+        let numbers = m
+            .skin_points
             .iter()
-            .chain(r.basis.iter().flatten())
-            .chain(r.support.iter().flatten())
-            .chain(
-                r.outputs
-                    .iter()
-                    .flat_map(|o| o.alpha.iter().chain([&o.rho, &o.mean, &o.scale])),
-            )
-            .chain(m.skin_points.iter().flat_map(|p| p.barycentric.iter()))
+            .flat_map(|p| p.barycentric.iter())
             .chain(m.subject.bone_points.iter().flatten())
-            .chain(
-                m.subject
-                    .transforms
-                    .iter()
-                    .flat_map(|t| t.rotation.iter().chain(&t.translation)),
-            );
-        if numbers.into_iter().any(|v| !v.is_finite()) {
-            return Err(Error::invalid(
-                path,
-                "regressor",
-                "holds a number that is not finite (a damaged or hand-edited model)",
+            .copied();
+        if !numbers.into_iter().all(f64::is_finite) {
+            return Err(damaged(
+                "subject".into(),
+                "holds a number that is not finite",
             ));
         }
         let n = m.skin_points.len();
-        if !m.subject.transforms.is_empty()
-            && m.subject.transforms.len() != 1
-            && m.subject.transforms.len() != n
-        {
-            return Err(Error::invalid(
-                path,
-                "subject.transforms",
-                format!(
-                    "{} transforms for {n} skin points (one each, or one for all)",
-                    m.subject.transforms.len()
-                ),
+        check_transforms(path, "subject.transforms", &m.subject.transforms, n)?;
+        for (k, t) in m.subject.blend.iter().enumerate() {
+            let field = format!("subject.blend[{k}]");
+            if t.mapping > m.sources.len() {
+                return Err(damaged(
+                    field,
+                    &format!(
+                        "names mapping {} of {} (0 the pooled one, then the sources)",
+                        t.mapping,
+                        m.sources.len() + 1
+                    ),
+                ));
+            }
+            if !(t.weight.is_finite() && (0.0..=1.0).contains(&t.weight)) {
+                return Err(damaged(field, "has a weight outside 0..1"));
+            }
+            check_transforms(path, &format!("{field}.transforms"), &t.transforms, n)?;
+        }
+        let total: f64 = m.subject.blend.iter().map(|t| t.weight).sum();
+        if !m.subject.blend.is_empty() && (total - 1.0).abs() > 1e-6 {
+            return Err(damaged(
+                "subject.blend".into(),
+                &format!("has weights that sum to {total}, not 1"),
             ));
         }
         Ok(m)
@@ -212,8 +303,64 @@ fn model(
         settings: settings.clone(),
         trained_on,
         regressor,
+        sources: Vec::new(),
         subject,
     }
+}
+
+/// Whether a regressor's sizes agree with each other and with `dim` skin features.
+fn regressor_fits(r: &Regressor, dim: usize) -> bool {
+    r.mean.len() == dim
+        && r.basis.iter().all(|b| b.len() == dim)
+        && r.support.iter().all(|s| s.len() == r.basis.len())
+        && r.outputs.len() == 15
+        && r.outputs.iter().all(|o| o.alpha.len() == r.support.len())
+        && r.width > 0.0
+}
+
+fn regressor_numbers(r: &Regressor) -> impl Iterator<Item = f64> + '_ {
+    r.mean
+        .iter()
+        .chain(r.basis.iter().flatten())
+        .chain(r.support.iter().flatten())
+        .chain(
+            r.outputs
+                .iter()
+                .flat_map(|o| o.alpha.iter().chain([&o.rho, &o.mean, &o.scale])),
+        )
+        .chain([&r.width])
+        .copied()
+}
+
+/// Transforms are one per skin point, one for all, or none, and finite.
+fn check_transforms(
+    path: &std::path::Path,
+    field: &str,
+    t: &[FeatureTransform],
+    points: usize,
+) -> Result<()> {
+    if !t.is_empty() && t.len() != 1 && t.len() != points {
+        return Err(Error::invalid(
+            path,
+            field,
+            format!(
+                "{} transforms for {points} skin points (one each, or one for all)",
+                t.len()
+            ),
+        ));
+    }
+    if !t
+        .iter()
+        .flat_map(|t| t.rotation.iter().chain(&t.translation))
+        .all(|v| v.is_finite())
+    {
+        return Err(Error::invalid(
+            path,
+            field,
+            "holds a number that is not finite (a damaged or hand-edited model)",
+        ));
+    }
+    Ok(())
 }
 
 fn regress_error(s: &Subject, e: impl std::fmt::Display) -> Error {
@@ -351,46 +498,4 @@ pub fn learn_multi(
         model(points, primary, regressor, names, settings, fit),
         reports,
     ))
-}
-
-/// The model carried to `target` from its calibration poses (and its rest, where the skin is
-/// the neutral's and the bone at rest: a sixth calibration pose for free).
-pub fn retarget_to(
-    m: &SkinModel,
-    target: &Subject,
-    settings: &RetargetSettings,
-) -> Result<(SkinModel, RetargetReport)> {
-    let frames: Vec<usize> = target
-        .calibration_indices()?
-        .into_iter()
-        .map(|(_, i)| i)
-        .collect();
-    retarget_on(m, target, &frames, settings)
-}
-
-/// The model carried to `target` from the jaw poses of frame indices `frames` (and its rest).
-pub fn retarget_on(
-    m: &SkinModel,
-    target: &Subject,
-    frames: &[usize],
-    settings: &RetargetSettings,
-) -> Result<(SkinModel, RetargetReport)> {
-    let (rest, ..) = target.rest()?;
-    let mut pairs: Vec<(Vec<f64>, Vec<f64>)> = frames
-        .iter()
-        .filter_map(|&i| {
-            Some((
-                target.skin_features(&m.skin_points, i),
-                target.bone_features(&rest, i)?,
-            ))
-        })
-        .collect();
-    pairs.push((vec![0.0; m.skin_points.len() * 3], vec![0.0; 15]));
-    let (transforms, report) = retarget_chosen(&m.regressor, &pairs, settings);
-    let mut out = m.clone();
-    out.subject = SubjectFit {
-        transforms,
-        ..SubjectFit::of(target, &rest)
-    };
-    Ok((out, report))
 }

@@ -10,7 +10,6 @@
 //! vector ω_v: the problem's only nonlinearity is then Φ's.
 
 use nalgebra::{DMatrix, DVector, Matrix3, Vector3};
-use rayon::prelude::*;
 use serde::{Deserialize, Serialize};
 
 use super::regress::Regressor;
@@ -24,14 +23,15 @@ pub struct RetargetSettings {
     pub lambda_translation: f64,
     /// Levenberg-Marquardt iterations at most.
     pub iterations: usize,
-    /// Choose how far to carry the mapping from the calibration poses themselves (on by
-    /// default), where there are at least [`MIN_CHOOSING_POSES`] of them (`skin fill`, or
-    /// `skin retarget --tracks`): each rung of [`LADDER`] is fitted with some poses left out
-    /// and scored on them, and the best taken. Fewer poses, or off: the paper's per-feature
-    /// transforms with its λ (five poses are each an extreme the others do not cover, and
-    /// leaving one out chose worse than the paper on both sets docs/skin.md measures).
-    #[serde(alias = "cross_validate")]
-    pub choose: bool,
+    /// Carry the mapping by every rung of [`LADDER`](super::carry::LADDER) (from none to the
+    /// paper's per-feature transforms) and average their predictions, each weighed by how well
+    /// it predicts the calibration poses left out (on by default; needs three poses besides
+    /// the rest). Off: the paper's per-feature transforms with its λ alone. Neither a single
+    /// rung chosen by leaving poses out (five poses are each an extreme the others do not
+    /// cover) nor the paper's rung alone (worse than none on some subjects) is as safe;
+    /// docs/skin.md measures.
+    #[serde(alias = "choose", alias = "cross_validate")]
+    pub blend: bool,
 }
 
 impl Default for RetargetSettings {
@@ -40,47 +40,7 @@ impl Default for RetargetSettings {
             lambda_rotation: 1e-5,
             lambda_translation: 2.5e-5,
             iterations: 50,
-            choose: true,
-        }
-    }
-}
-
-/// How far a mapping is carried to a new subject.
-#[derive(Debug, Clone, Copy, PartialEq)]
-pub enum Carry {
-    /// The source's mapping as it is (the uncalibrated mapping).
-    None,
-    /// One rigid transform of every skin feature's displacement (6 numbers).
-    Global,
-    /// The global transform, then one per feature, regularised by Eq. 3's λ times this
-    /// multiple.
-    PerFeature(f64),
-    /// The paper's: one transform per feature from the identity, with Eq. 3's λ.
-    Paper,
-}
-
-/// The fewest calibration poses (besides the rest) from which the rung is chosen.
-pub const MIN_CHOOSING_POSES: usize = 10;
-
-/// Calibration poses are left out in at most this many groups when the choice scores a rung.
-pub const MAX_FOLDS: usize = 5;
-
-/// The candidates the choice tries, simplest first.
-pub const LADDER: [Carry; 5] = [
-    Carry::None,
-    Carry::Global,
-    Carry::PerFeature(1e4),
-    Carry::PerFeature(1e2),
-    Carry::Paper,
-];
-
-impl std::fmt::Display for Carry {
-    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
-        match self {
-            Carry::None => write!(f, "none"),
-            Carry::Global => write!(f, "global"),
-            Carry::PerFeature(k) => write!(f, "global, then per-feature λ×{k}"),
-            Carry::Paper => write!(f, "per-feature"),
+            blend: true,
         }
     }
 }
@@ -93,12 +53,12 @@ pub struct FeatureTransform {
 }
 
 impl FeatureTransform {
-    fn matrix(&self) -> Matrix3<f64> {
+    pub(crate) fn matrix(&self) -> Matrix3<f64> {
         *so3_exp(&Vector3::from(self.rotation)).matrix()
     }
 
     /// This transform applied after `first`: d ↦ R (R₁ d + t₁) + t.
-    fn after(&self, first: &FeatureTransform) -> FeatureTransform {
+    pub(crate) fn after(&self, first: &FeatureTransform) -> FeatureTransform {
         let r = so3_exp(&Vector3::from(self.rotation)) * so3_exp(&Vector3::from(first.rotation));
         let t = self.matrix() * Vector3::from(first.translation) + Vector3::from(self.translation);
         FeatureTransform {
@@ -126,15 +86,18 @@ pub fn apply(transforms: &[FeatureTransform], f: &[f64]) -> Vec<f64> {
 }
 
 /// What the solve reached: the data term Σ|Φ − B|² before and after (mm²), the steps, the
-/// rung taken and, when chosen, every rung's score on the poses left out.
+/// best rung and every rung's score on the poses left out.
 #[derive(Debug, Clone, Default, Serialize)]
 pub struct RetargetReport {
     pub cost_before: f64,
     pub cost_after: f64,
     pub iterations: usize,
-    /// The rung of [`LADDER`] taken ("none", "global", "per-feature λ×100", …).
+    /// The rung of [`LADDER`](super::carry::LADDER) that scored best ("none", "global", "per-feature λ×100", …).
     pub carried: String,
     pub candidates: Vec<CandidateScore>,
+    /// The rungs (of each mapping, in a multi-subject model) blended, and their weights.
+    #[serde(default, skip_serializing_if = "Vec::is_empty")]
+    pub blend: Vec<(String, f64)>,
 }
 
 /// One rung's mean bone point error (mm) on the calibration poses left out, and its standard
@@ -144,115 +107,9 @@ pub struct CandidateScore {
     pub carry: String,
     pub mm: f64,
     pub standard_error_mm: f64,
-}
-
-/// Fit one rung of the ladder on `pairs`.
-fn fit(
-    phi: &Regressor,
-    pairs: &[(Vec<f64>, Vec<f64>)],
-    s: &RetargetSettings,
-    carry: Carry,
-) -> (Vec<FeatureTransform>, RetargetReport) {
-    let mut out = match carry {
-        Carry::None => {
-            let c = data_cost(phi, pairs, &[]);
-            (
-                Vec::new(),
-                RetargetReport {
-                    cost_before: c,
-                    cost_after: c,
-                    ..Default::default()
-                },
-            )
-        }
-        Carry::Global => {
-            let (t, r) = align_globally(phi, pairs, s);
-            (vec![t], r)
-        }
-        Carry::Paper => retarget(phi, pairs, s),
-        Carry::PerFeature(k) => {
-            let scaled = RetargetSettings {
-                lambda_rotation: s.lambda_rotation * k,
-                lambda_translation: s.lambda_translation * k,
-                ..*s
-            };
-            // Per-feature transforms on top of the global one: the regulariser then shrinks
-            // each toward the subject's overall change, which five poses determine well.
-            let (g, first) = align_globally(phi, pairs, s);
-            let moved: Vec<(Vec<f64>, Vec<f64>)> = pairs
-                .iter()
-                .map(|(f, b)| (apply(&[g], f), b.clone()))
-                .collect();
-            let (each, mut r) = retarget(phi, &moved, &scaled);
-            r.cost_before = first.cost_before;
-            r.iterations += first.iterations;
-            (each.iter().map(|t| t.after(&g)).collect(), r)
-        }
-    };
-    out.1.carried = carry.to_string();
-    out
-}
-
-/// Retarget from calibration pairs (the last one the rest pose, which always stays in): the
-/// paper's per-feature transforms, or, with [`RetargetSettings::choose`] and at least
-/// [`MIN_CHOOSING_POSES`] poses, the rung of [`LADDER`] that predicts the poses left out best.
-/// The rungs taken are scored on the poses left out either way (a mapping's weight among
-/// several).
-pub fn retarget_chosen(
-    phi: &Regressor,
-    pairs: &[(Vec<f64>, Vec<f64>)],
-    s: &RetargetSettings,
-) -> (Vec<FeatureTransform>, RetargetReport) {
-    if s.iterations == 0 {
-        return fit(phi, pairs, s, Carry::None);
-    }
-    let held = pairs.len().saturating_sub(1);
-    if held < 3 {
-        return fit(phi, pairs, s, Carry::Paper);
-    }
-    let ladder: &[Carry] = if s.choose && held >= MIN_CHOOSING_POSES {
-        &LADDER
-    } else {
-        &[Carry::Paper]
-    };
-    let error = |t: &[FeatureTransform], (f, b): &(Vec<f64>, Vec<f64>)| {
-        super::regress::point_errors(&phi.predict(&apply(t, f)), b)
-    };
-    // Each pose is left out once; beyond MAX_FOLDS poses, in MAX_FOLDS interleaved groups.
-    let folds = held.min(MAX_FOLDS);
-    let scores: Vec<CandidateScore> = ladder
-        .iter()
-        .map(|&carry| {
-            let fitted: Vec<Vec<FeatureTransform>> = (0..folds)
-                .into_par_iter()
-                .map(|k| {
-                    let rest: Vec<(Vec<f64>, Vec<f64>)> = pairs
-                        .iter()
-                        .enumerate()
-                        .filter(|(i, _)| *i >= held || i % folds != k)
-                        .map(|(_, p)| p.clone())
-                        .collect();
-                    fit(phi, &rest, s, carry).0
-                })
-                .collect();
-            let e: Vec<f64> = (0..held)
-                .map(|i| error(&fitted[i % folds], &pairs[i]))
-                .collect();
-            let mm = e.iter().sum::<f64>() / held as f64;
-            let var = e.iter().map(|v| (v - mm).powi(2)).sum::<f64>() / (held - 1) as f64;
-            CandidateScore {
-                carry: carry.to_string(),
-                mm,
-                standard_error_mm: (var / held as f64).sqrt(),
-            }
-        })
-        .collect();
-    let best = (0..scores.len())
-        .min_by(|&a, &b| scores[a].mm.total_cmp(&scores[b].mm))
-        .expect("candidates");
-    let (t, mut report) = fit(phi, pairs, s, ladder[best]);
-    report.candidates = scores;
-    (t, report)
+    /// Each pose's bone features as predicted with it left out, in the calibration's order.
+    #[serde(skip)]
+    pub held_out: Vec<Vec<f64>>,
 }
 
 /// One transform per skin feature from `(skin features, bone features)` calibration pairs.
@@ -275,7 +132,11 @@ pub fn align_globally(
     (t[0], r)
 }
 
-fn data_cost(phi: &Regressor, pairs: &[(Vec<f64>, Vec<f64>)], t: &[FeatureTransform]) -> f64 {
+pub(crate) fn data_cost(
+    phi: &Regressor,
+    pairs: &[(Vec<f64>, Vec<f64>)],
+    t: &[FeatureTransform],
+) -> f64 {
     pairs
         .iter()
         .map(|(f, b)| {
@@ -449,7 +310,7 @@ fn jacobian(
 }
 
 #[cfg(test)]
-mod tests {
+pub(crate) mod tests {
     use super::*;
     use crate::skin::regress::RegressSettings;
 
@@ -533,10 +394,13 @@ mod tests {
         }
     }
 
-    #[test]
-    fn a_subject_whose_skin_moves_turned_is_brought_back() {
+    /// Calibration pairs: (skin features, bone features).
+    pub(crate) type Pairs = Vec<(Vec<f64>, Vec<f64>)>;
+
+    /// `n` calibration pairs of a target whose displacements are the source's turned by 20°
+    /// about y and shifted, with the mapping.
+    pub(crate) fn turned_pairs(n: usize) -> (Regressor, Pairs) {
         let (phi, x, y) = mapping();
-        // The target's displacements are the source's turned by 20° about y and shifted.
         let turn = FeatureTransform {
             rotation: [0.0, 0.35, 0.0],
             translation: [0.3, 0.0, 0.0],
@@ -554,25 +418,15 @@ mod tests {
                 .collect();
             (f, y[i].clone())
         };
-        let pairs: Vec<(Vec<f64>, Vec<f64>)> = (0..6).map(turned).collect();
+        (phi, (0..n).map(turned).collect())
+    }
+
+    #[test]
+    fn a_subject_whose_skin_moves_turned_is_brought_back() {
+        let (phi, pairs) = turned_pairs(6);
         let (_, report) = align_globally(&phi, &pairs, &RetargetSettings::default());
         assert!(report.cost_after < 0.05 * report.cost_before, "{report:?}");
         let (_, report) = retarget(&phi, &pairs, &RetargetSettings::default());
         assert!(report.cost_after < 0.05 * report.cost_before, "{report:?}");
-        // Five poses: the paper's transforms, scored on the poses left out.
-        let (_, report) = retarget_chosen(&phi, &pairs, &RetargetSettings::default());
-        assert_eq!(report.carried, "per-feature");
-        assert_eq!(report.candidates.len(), 1);
-        // Twelve: every rung is scored and, the turn being real, one that carries it is taken;
-        // the global rung, which is what the turn is, predicts the poses left out far better
-        // than none.
-        let many: Vec<(Vec<f64>, Vec<f64>)> = (0..12).map(turned).collect();
-        let (t, report) = retarget_chosen(&phi, &many, &RetargetSettings::default());
-        assert_eq!(report.candidates.len(), LADDER.len());
-        assert!(report.carried != "none" && !t.is_empty(), "{report:?}");
-        assert!(
-            report.candidates[1].mm < 0.5 * report.candidates[0].mm,
-            "{report:?}"
-        );
     }
 }
