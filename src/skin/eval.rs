@@ -46,21 +46,21 @@ pub struct SubjectScore {
     pub retargeted_mm: f64,
     pub retargeted_bone_mm: f64,
     pub retargeted_from: String,
-    /// How far that source was carried (a rung of the retargeting's ladder), and every
-    /// rung's score on the calibration poses left out.
+    /// The rung of the ladder that scored best for that source, and every rung's score on the
+    /// calibration poses left out (its mapping is the blend of them all).
     pub retargeted_carried: String,
     pub retargeted_candidates: Vec<CandidateScore>,
     pub retargeted_each_mm: Vec<(String, f64)>,
     /// The best single other subject's mapping without retargeting.
     pub uncalibrated_mm: f64,
     /// The multi-subject mapping: the paper's pooled mapping of all the others and each
-    /// other's own, every one retargeted, weighted by how well each predicts the subject's
-    /// calibration poses when they are left out; every frame.
+    /// other's own, every one carried by every rung, blended by how well each predicts the
+    /// subject's calibration poses when they are left out; every frame.
     pub multi_subject_mm: f64,
     pub multi_subject_bone_mm: f64,
-    /// The weight of each member ("pooled" and the sources' names).
+    /// The weight of each mapping ("pooled" and the sources' names), its rungs' summed.
     pub multi_subject_weights: Vec<(String, f64)>,
-    /// The paper's pooled mapping alone, retargeted, and how far it was carried.
+    /// The paper's pooled mapping alone, its rungs blended, and its best-scored rung.
     pub pooled_mm: f64,
     pub pooled_carried: String,
     /// The multi-subject mapping's error with more calibration poses than the five: the
