@@ -435,8 +435,10 @@ fn masks_from_sam2_objects_and_a_cvat_export() {
 /// Masks the program makes: a synthetic capture filmed in colour (`synth --images`), its
 /// masks removed, made again by `segment` while it tracks. Every picture gets a mask in the
 /// capture format, the teeth and each arch overlap the true labels (gt/masks) with margins
-/// below what this writes today (docs/footage.md), and the masks made are refused as
-/// overwritable without --force.
+/// below what this writes today (docs/footage.md), so does the mouth interior (whose first
+/// pictures show the mouth closed: its lips must not be learned as the interior), `--debug`
+/// writes every picture's posteriors, and the masks made are refused as overwritable
+/// without --force.
 #[test]
 fn segment_makes_masks_from_colour_frames() {
     let tmp = tempfile::tempdir().unwrap();
@@ -444,7 +446,17 @@ fn segment_makes_masks_from_colour_frames() {
     ok(&["synth", s(&cap), "--frames", "6", "--images"]);
     std::fs::remove_dir_all(cap.join("masks")).unwrap();
     let tracks = tmp.path().join("tracks.json");
-    let out = ok(&["segment", s(&cap), "-o", s(&tracks), "--backend", "cpu"]);
+    let debug = tmp.path().join("posteriors");
+    let out = ok(&[
+        "segment",
+        s(&cap),
+        "-o",
+        s(&tracks),
+        "--backend",
+        "cpu",
+        "--debug",
+        s(&debug),
+    ]);
     let iou = |name: &str| -> f64 {
         let at = out
             .find(&format!("{name} "))
@@ -459,11 +471,19 @@ fn segment_makes_masks_from_colour_frames() {
     assert!(iou("IoU teeth") > 0.8, "{out}");
     assert!(iou("upper") > 0.75, "{out}");
     assert!(iou("lower") > 0.75, "{out}");
+    assert!(iou("mouth interior") > 0.7, "{out}");
     for cam in ["cam0", "cam1", "cam2"] {
         for f in 0..6 {
             assert!(
                 cap.join(format!("masks/{cam}/{f:06}.png")).exists(),
                 "{cam} frame {f}: no mask"
+            );
+            let picture = debug.join(format!("{cam}/{f:06}.png"));
+            assert_eq!(
+                image::image_dimensions(&picture).unwrap(),
+                image::image_dimensions(cap.join(format!("images/{cam}/{f:06}.png"))).unwrap(),
+                "{}",
+                picture.display()
             );
         }
     }
@@ -611,4 +631,47 @@ fn from_videos_and_calibration_files_to_tracks() {
     eprintln!("jaw from footage: {jaw}");
     assert!(jaw["median"].as_f64().unwrap() < 1.0, "{score}");
     assert!(jaw["max"].as_f64().unwrap() < 3.0, "{score}");
+}
+
+/// `synth --photos hard` films what a real mouth shows inside the lips besides teeth and the
+/// dark throat: gums and the tongue, pink and lit, labelled as the mouth interior (the spec:
+/// where the camera sees no tooth). Clean pictures show none.
+#[test]
+fn hard_photos_show_gums_and_tongue_as_mouth_interior() {
+    let tmp = tempfile::tempdir().unwrap();
+    let lit_interior = |photos: &str| -> usize {
+        let cap = tmp.path().join(photos);
+        ok(&[
+            "synth",
+            s(&cap),
+            "--frames",
+            "13",
+            "--images",
+            "--photos",
+            photos,
+        ]);
+        let mut n = 0;
+        for cam in ["cam0", "cam1", "cam2"] {
+            // Half open.
+            let name = format!("{cam}/000012.png");
+            let rgb = image::open(cap.join("images").join(&name))
+                .unwrap()
+                .into_rgb8();
+            let truth = image::open(cap.join("gt/masks").join(&name))
+                .unwrap()
+                .into_luma8();
+            n += rgb
+                .pixels()
+                .zip(truth.pixels())
+                .filter(|(c, t)| {
+                    let [r, g, b] = c.0.map(|v| v as f32);
+                    t.0[0] == 40 && 0.299 * r + 0.587 * g + 0.114 * b > 90.0
+                })
+                .count();
+        }
+        n
+    };
+    let (clean, hard) = (lit_interior("clean"), lit_interior("hard"));
+    assert!(hard > 500, "hard: {hard} lit interior pixels");
+    assert!(clean * 20 < hard, "clean {clean}, hard {hard}");
 }

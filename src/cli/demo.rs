@@ -77,6 +77,7 @@ fn synthesise(a: &Args, out: &Path, force: bool) -> anyhow::Result<()> {
         persistent_noise: false,
         images: false,
         light_off: None,
+        photos: Default::default(),
     };
     println!(
         "== 1. synthesise a {} capture: three cameras, half-resolution masks",

@@ -19,6 +19,11 @@ pub struct Args {
     /// file, or the JSON itself when it starts with `{`.
     #[arg(long)]
     pub segment_settings: Option<PathBuf>,
+    /// Also write each picture's posteriors into this folder (<camera>/<frame>.png): red
+    /// teeth, green mouth interior, blue lips and skin, each as bright as it is probable
+    /// before the graph cuts: why a mask came out as it did.
+    #[arg(long)]
+    pub debug: Option<PathBuf>,
 }
 
 pub fn run(args: Args) -> anyhow::Result<()> {
@@ -70,6 +75,9 @@ pub fn run(args: Args) -> anyhow::Result<()> {
     eprintln!("energy backend: {}", session.backend());
     let todo = session.todo();
     let mut segmenter = Segmenter::new(&capture, &sizes, segment_settings);
+    if let Some(dir) = &args.debug {
+        segmenter = segmenter.with_debug(dir.clone());
+    }
     let bar = super::progress_bar(todo.len() as u64, "segmenting and tracking");
     let summary = session.run_with(Some(&mut segmenter), &mut |r| {
         bar.set_message(format!("segmenting and tracking ({})", r.status.as_str()));

@@ -1,6 +1,6 @@
 use std::path::PathBuf;
 
-use jawtrack::synth::SynthOptions;
+use jawtrack::synth::{Photos, SynthOptions};
 
 use super::args::{CameraRigArgs, JointArg, MaskKindArg, PresetArg};
 
@@ -66,9 +66,20 @@ pub struct Args {
     /// With --images: frames `A..B` during which the light is off (the sync event).
     #[arg(long, requires = "images")]
     pub light_off: Option<String>,
+    /// With --images: `hard` films what a real mouth shows besides teeth (gums, the tongue,
+    /// wet highlights, lips shading the crowns, motion blur, drifting exposure and white
+    /// balance).
+    #[arg(long, value_enum, default_value_t = PhotosArg::Clean, requires = "images")]
+    pub photos: PhotosArg,
     /// Print the report as JSON.
     #[arg(long)]
     pub json: bool,
+}
+
+#[derive(Debug, Clone, Copy, clap::ValueEnum)]
+pub enum PhotosArg {
+    Clean,
+    Hard,
 }
 
 pub fn run(a: Args) -> anyhow::Result<()> {
@@ -96,6 +107,10 @@ pub fn run(a: Args) -> anyhow::Result<()> {
         persistent_noise: a.persistent_noise,
         images: a.images,
         light_off: a.light_off.as_deref().map(light_off).transpose()?,
+        photos: match a.photos {
+            PhotosArg::Clean => Photos::Clean,
+            PhotosArg::Hard => Photos::Hard,
+        },
     };
     let report = super::run::synthesise(&out, &opts)?;
     if a.json {

@@ -11,6 +11,7 @@ mod distance;
 pub mod graph_cut;
 pub mod picture;
 pub mod score;
+mod seeds;
 pub mod settings;
 
 use std::path::Path;
@@ -50,6 +51,8 @@ pub struct Segmenter<'c> {
     pub counts: Vec<CameraCounts>,
     /// Seconds spent segmenting (reading pictures and writing masks included).
     pub seconds: f64,
+    /// Where each picture's posteriors go (`segment --debug`), if anywhere.
+    debug: Option<std::path::PathBuf>,
 }
 
 /// The size of each camera's pictures (from its first picture in the capture's frames), and
@@ -131,7 +134,16 @@ impl<'c> Segmenter<'c> {
             capture,
             settings,
             seconds: 0.0,
+            debug: None,
         }
+    }
+
+    /// Also write each picture's posteriors into `dir`/<camera>/<frame:06>.png: red teeth,
+    /// green mouth interior, blue lips and skin, each as bright as it is probable, from the
+    /// colour models and the spatial prior before the graph cuts smooth them.
+    pub fn with_debug(mut self, dir: std::path::PathBuf) -> Self {
+        self.debug = Some(dir);
+        self
     }
 
     /// One camera's picture of `frame` segmented and its mask written; `None` where it gave
@@ -188,18 +200,36 @@ impl<'c> Segmenter<'c> {
                 }
             }
         }
-        let labels =
-            match segment_picture(&rgb, w as usize, h as usize, &prior, models, &self.settings) {
-                Outcome::Labels(l) => l,
-                Outcome::Dark => {
-                    counts.dark += 1;
-                    return remove_stale(&mask_path).map(|_| None);
-                }
-                Outcome::OutOfView => {
-                    counts.out_of_view += 1;
-                    return remove_stale(&mask_path).map(|_| None);
-                }
-            };
+        let mut posteriors = Vec::new();
+        let wanted = self.debug.is_some().then_some(&mut posteriors);
+        let outcome = segment_picture(
+            &rgb,
+            w as usize,
+            h as usize,
+            &prior,
+            models,
+            &self.settings,
+            wanted,
+        );
+        if let Some(dir) = &self.debug
+            && !posteriors.is_empty()
+        {
+            write_atomic(
+                &dir.join(&cam.name).join(format!("{frame:06}.png")),
+                &encode_png(&posteriors, w, h, image::ExtendedColorType::Rgb8),
+            )?;
+        }
+        let labels = match outcome {
+            Outcome::Labels(l) => l,
+            Outcome::Dark => {
+                counts.dark += 1;
+                return remove_stale(&mask_path).map(|_| None);
+            }
+            Outcome::OutOfView => {
+                counts.out_of_view += 1;
+                return remove_stale(&mask_path).map(|_| None);
+            }
+        };
         counts.segmented += 1;
         let values = encode_values(&labels, capture.mask_mode(), capture.mouth());
         write_atomic(

@@ -6,6 +6,7 @@
 use super::colour_model::{ColourModel, luma};
 use super::distance::{distance_transform, mouth_span_distance};
 use super::graph_cut::GridCut;
+use super::seeds::{initial_classes, learn_interior};
 use super::settings::SegmentSettings;
 use crate::capture::masks::MOUTH_BIT;
 
@@ -13,7 +14,9 @@ use crate::capture::masks::MOUTH_BIT;
 #[derive(Debug, Clone)]
 pub struct Models {
     pub teeth: ColourModel,
-    pub mouth: ColourModel,
+    /// `None` until a picture shows the mouth's dark interior (a closed mouth shows none, and
+    /// a model learned there would learn the lips).
+    pub mouth: Option<ColourModel>,
     pub other: ColourModel,
     /// Mean luma of the region they were learned in: a picture much darker than this was
     /// taken with the lights off.
@@ -48,7 +51,9 @@ impl Roi {
 
 /// Segment `rgb` (`width` x `height`, 3 bytes a pixel) given `prior`, the label bits of the
 /// models drawn at the expected poses (UPPER_BIT / LOWER_BIT per pixel, 0 elsewhere).
-/// `models` are learned here when `None`, and updated after.
+/// `models` are learned here when `None`, and updated after. `posteriors`, when given, gets
+/// the picture of what the colour models and the prior made of each pixel before the cuts
+/// ([`posterior_picture`]).
 pub fn segment_picture(
     rgb: &[u8],
     width: usize,
@@ -56,6 +61,7 @@ pub fn segment_picture(
     prior: &[u8],
     models: &mut Option<Models>,
     settings: &SegmentSettings,
+    posteriors: Option<&mut Vec<u8>>,
 ) -> Outcome {
     let Some(roi) = roi(prior, width, height) else {
         return Outcome::OutOfView;
@@ -80,6 +86,11 @@ pub fn segment_picture(
         return Outcome::Dark;
     }
     let learning = models.is_none();
+    if let Some(m) = models.as_mut()
+        && m.mouth.is_none()
+    {
+        m.mouth = learn_interior(&colours, &priors, m, settings.min_pixels);
+    }
     let first: Vec<u8> = if learning {
         initial_classes(
             &colours,
@@ -96,6 +107,9 @@ pub fn segment_picture(
     let Some(classes) = classes else {
         return Outcome::OutOfView;
     };
+    if let (Some(out), Some(m)) = (posteriors, models.as_ref()) {
+        *out = posterior_picture(&likelihoods(&colours, &priors, m), roi, width, height);
+    }
     if !learning {
         let m = models.as_mut().expect("present");
         follow_picture(&colours, &classes, roi, m, mean_luma, settings);
@@ -146,7 +160,7 @@ fn cut_rounds(
     };
     for _ in 0..rounds.max(1) {
         if learning {
-            let fresh = learn(colours, &classes, settings.min_pixels)?;
+            let fresh = learn(colours, &classes, roi, settings.min_pixels)?;
             *models = Some(Models {
                 lit_luma: mean_luma,
                 ..fresh
@@ -170,13 +184,16 @@ fn follow_picture(
 ) {
     let edges_out = eroded(classes, roi.w, roi.h);
     let rate = settings.learning_rate;
-    for (k, model) in [&mut m.teeth, &mut m.mouth, &mut m.other]
-        .into_iter()
-        .enumerate()
-    {
-        if let Some(fresh) = learn_class(colours, &edges_out, k as u8, settings.min_pixels) {
-            model.update(&fresh, rate);
-        }
+    let fresh = |k: u8| learn_class(colours, &edges_out, k, settings.min_pixels);
+    if let Some(f) = fresh(0) {
+        m.teeth.update(&f, rate);
+    }
+    // Lips and skin also from the edges, as on the first picture (`learn`).
+    if let Some(f) = learn_class(colours, classes, 2, settings.min_pixels) {
+        m.other.update(&f, rate);
+    }
+    if let (Some(mouth), Some(f)) = (&mut m.mouth, fresh(1)) {
+        mouth.update(&f, rate);
     }
     m.lit_luma += rate * (mean_luma - m.lit_luma);
 }
@@ -200,107 +217,6 @@ fn picture_labels(
         };
     }
     labels
-}
-
-/// A first guess of the classes, to learn the colour models from. The models' projection
-/// holds teeth and whatever hides them (lips, gums, the mouth's shadow): teeth are its
-/// palest pixels, of colours rare just around it. Of the rest near the arches, the clearly darker part (a two-class
-/// split of luma, Otsu's) is the mouth interior; everything else is lips and skin.
-fn initial_classes(
-    colours: &[[u8; 3]],
-    projected: &[u8],
-    distance: &[f32],
-    span_distance: &[f32],
-    reach: f32,
-    min_pixels: usize,
-) -> Vec<u8> {
-    let n = colours.len();
-    // Enamel is the least saturated of what the projection holds (lips, gums and the mouth
-    // are red), in light and in shadow alike: teeth are the paler side of a two-class split
-    // of saturation there, when the split is clear.
-    let pale: Vec<f32> = (0..n)
-        .filter(|&i| projected[i] != 0)
-        .map(|i| saturation(colours[i]))
-        .collect();
-    let pale_below = otsu(&pale)
-        .filter(|&(_, low, high)| low < 0.7 * high)
-        .map_or(f32::INFINITY, |(t, _, _)| t);
-    // Skin the projection reaches at the mouth's corners can be as pale: teeth are also the
-    // colours far commoner inside the projection than in the ring around it.
-    let ring = |i: usize| projected[i] == 0 && distance[i] <= 4.0 * reach;
-    let learn_where = |inside: &dyn Fn(usize) -> bool| {
-        ColourModel::learn(
-            (0..n).filter(|&i| inside(i)).map(|i| colours[i]),
-            min_pixels,
-        )
-    };
-    let models = (learn_where(&|i| projected[i] != 0), learn_where(&ring));
-    let teeth: Vec<bool> = (0..n)
-        .map(|i| {
-            let c = colours[i];
-            projected[i] != 0
-                && saturation(c) < pale_below
-                && match &models {
-                    (Some(inside), Some(around)) => inside.density(c) > 3.0 * around.density(c),
-                    _ => true,
-                }
-        })
-        .collect();
-    let near: Vec<bool> = (0..n)
-        .map(|i| span_distance[i] <= reach && !teeth[i])
-        .collect();
-    let lumas: Vec<f32> = (0..n)
-        .filter(|&i| near[i])
-        .map(|i| luma(colours[i]))
-        .collect();
-    let dark_below = otsu(&lumas).filter(|&(_, dark, bright)| dark < 0.6 * bright);
-    (0..n)
-        .map(|i| {
-            if teeth[i] {
-                0
-            } else if near[i] && dark_below.is_some_and(|(t, _, _)| luma(colours[i]) < t) {
-                1
-            } else {
-                2
-            }
-        })
-        .collect()
-}
-
-/// Saturation as HSV has it, scaled to 0..255.
-fn saturation(c: [u8; 3]) -> f32 {
-    let (hi, lo) = (*c.iter().max().unwrap(), *c.iter().min().unwrap());
-    if hi == 0 {
-        0.0
-    } else {
-        255.0 * (hi - lo) as f32 / hi as f32
-    }
-}
-
-/// Otsu's threshold of a set of values (0..255), with the two sides' means.
-fn otsu(values: &[f32]) -> Option<(f32, f32, f32)> {
-    let mut hist = [0f64; 256];
-    for &v in values {
-        hist[v.clamp(0.0, 255.0) as usize] += 1.0;
-    }
-    let total: f64 = hist.iter().sum();
-    let sum: f64 = hist.iter().enumerate().map(|(k, h)| k as f64 * h).sum();
-    let (mut below, mut below_sum) = (0f64, 0f64);
-    let mut best: Option<(f64, f32, f32, f32)> = None;
-    for (k, h) in hist.iter().enumerate() {
-        below += h;
-        below_sum += k as f64 * h;
-        let above = total - below;
-        if below == 0.0 || above == 0.0 {
-            continue;
-        }
-        let (m0, m1) = (below_sum / below, (sum - below_sum) / above);
-        let between = below * above * (m0 - m1).powi(2);
-        if best.is_none_or(|b| between > b.0) {
-            best = Some((between, k as f32 + 1.0, m0 as f32, m1 as f32));
-        }
-    }
-    best.map(|(_, t, m0, m1)| (t, m0, m1))
 }
 
 /// The prior's bounding box, widened by a third of its height and a sixth of its width.
@@ -329,15 +245,19 @@ fn roi(prior: &[u8], width: usize, height: usize) -> Option<Roi> {
     })
 }
 
-/// Colour models from the pixels of each class (0 teeth, 1 mouth, 2 other; others unused);
-/// a class other than teeth with too few pixels gets a uniform model (a closed mouth shows
-/// no interior).
-fn learn(colours: &[[u8; 3]], classes: &[u8], min_pixels: usize) -> Option<Models> {
-    let of = |k: u8| learn_class(colours, classes, k, min_pixels);
+/// Colour models from the pixels of each class (0 teeth, 1 mouth, 2 other; others unused).
+/// Teeth and mouth interior learn from inside their regions alone, lips and skin also from
+/// the edges, where a blurred picture mixes lip and skin (or lip and tooth): a mixed colour
+/// must be likelier lip than tooth. Teeth too thin to have an inside learn from all of
+/// theirs. A mouth with too few interior pixels gets no model (a
+/// closed mouth shows none); lips and skin too few get a uniform one.
+fn learn(colours: &[[u8; 3]], classes: &[u8], roi: Roi, min_pixels: usize) -> Option<Models> {
+    let inner = eroded(classes, roi.w, roi.h);
     Some(Models {
-        teeth: of(0)?,
-        mouth: of(1).unwrap_or_else(ColourModel::uniform),
-        other: of(2).unwrap_or_else(ColourModel::uniform),
+        teeth: learn_class(colours, &inner, 0, min_pixels)
+            .or_else(|| learn_class(colours, classes, 0, min_pixels))?,
+        mouth: learn_class(colours, &inner, 1, min_pixels),
+        other: learn_class(colours, classes, 2, min_pixels).unwrap_or_else(ColourModel::uniform),
         lit_luma: 0.0,
     })
 }
@@ -404,6 +324,38 @@ fn difference(a: [u8; 3], b: [u8; 3]) -> f32 {
         .sum::<f32>()
 }
 
+/// Per ROI pixel, prior times colour density of teeth, mouth interior (0 while it has no
+/// model), and lips and skin.
+fn likelihoods(colours: &[[u8; 3]], priors: &[[f32; 3]], m: &Models) -> Vec<[f32; 3]> {
+    colours
+        .iter()
+        .zip(priors)
+        .map(|(&c, p)| {
+            [
+                p[0] * m.teeth.density(c),
+                m.mouth
+                    .as_ref()
+                    .map_or(0.0, |mouth| p[1] * mouth.density(c)),
+                p[2] * m.other.density(c),
+            ]
+        })
+        .collect()
+}
+
+/// The whole picture (RGB) of each pixel's posterior: red teeth, green mouth interior, blue
+/// lips and skin, each at its probability; outside the region worked on, blue.
+fn posterior_picture(likelihood: &[[f32; 3]], roi: Roi, width: usize, height: usize) -> Vec<u8> {
+    let mut rgb: Vec<u8> = [0u8, 0, 255].repeat(width * height);
+    for (i, l) in likelihood.iter().enumerate() {
+        let (x, y) = roi.at(i);
+        let total = (l[0] + l[1] + l[2]).max(1e-30);
+        for k in 0..3 {
+            rgb[(y * width + x) * 3 + k] = (255.0 * l[k] / total).round() as u8;
+        }
+    }
+    rgb
+}
+
 /// Teeth against the rest, then, among the rest, mouth interior against lips and skin.
 fn cut(
     colours: &[[u8; 3]],
@@ -415,17 +367,7 @@ fn cut(
 ) -> Vec<u8> {
     let (w, h) = (roi.w, roi.h);
     let n = w * h;
-    let likelihood: Vec<[f32; 3]> = (0..n)
-        .map(|i| {
-            let c = colours[i];
-            let p = priors[i];
-            [
-                p[0] * m.teeth.density(c),
-                p[1] * m.mouth.density(c),
-                p[2] * m.other.density(c),
-            ]
-        })
-        .collect();
+    let likelihood = likelihoods(colours, priors, m);
     let cost = |p: f32| -(p.max(1e-12)).ln();
     let lambda = settings.smoothness as f32;
     let pairs = |g: &mut GridCut, skip: &dyn Fn(usize) -> bool| {
@@ -525,7 +467,8 @@ mod tests {
             ..SegmentSettings::default()
         };
         let mut models = None;
-        let Outcome::Labels(labels) = segment_picture(&rgb, w, h, &prior, &mut models, &settings)
+        let Outcome::Labels(labels) =
+            segment_picture(&rgb, w, h, &prior, &mut models, &settings, None)
         else {
             panic!("the prior is in view and the picture is lit");
         };
@@ -544,9 +487,103 @@ mod tests {
         // The same picture in the dark is refused once the models know the light.
         let dark: Vec<u8> = rgb.iter().map(|&v| v / 10).collect();
         assert!(matches!(
-            segment_picture(&dark, w, h, &prior, &mut models, &settings),
+            segment_picture(&dark, w, h, &prior, &mut models, &settings, None),
             Outcome::Dark
         ));
+    }
+
+    /// Upper teeth over lower teeth `gap` rows apart (the dark interior between), inside
+    /// lips, on skin; the prior draws both arches where they are. The picture and its true
+    /// labels.
+    fn mouth_picture(gap: usize) -> (Vec<u8>, Vec<u8>, Vec<u8>) {
+        let (w, h) = (120, 80);
+        let (mut rgb, mut truth, mut prior) =
+            (vec![0u8; w * h * 3], vec![0u8; w * h], vec![0u8; w * h]);
+        for y in 0..h {
+            for x in 0..w {
+                let i = y * w + x;
+                let across = (30..90).contains(&x);
+                let (c, t): ([u8; 3], u8) = if across && (30..38).contains(&y) {
+                    ([230, 220, 195], UPPER_BIT)
+                } else if across && (38..38 + gap).contains(&y) {
+                    ([60, 20, 25], MOUTH_BIT)
+                } else if across && (38 + gap..46 + gap).contains(&y) {
+                    ([225, 214, 190], LOWER_BIT)
+                } else if across && (20..56 + gap).contains(&y) {
+                    ([170, 80, 85], 0)
+                } else {
+                    ([210, 160, 135], 0)
+                };
+                let noise = ((x * 7 + y * 13) % 9) as u8;
+                for k in 0..3 {
+                    rgb[i * 3 + k] = c[k].saturating_add(noise);
+                }
+                truth[i] = t;
+                if across && (26..38).contains(&y) {
+                    prior[i] = UPPER_BIT;
+                } else if across && (38 + gap..50 + gap).contains(&y) {
+                    prior[i] = LOWER_BIT;
+                }
+            }
+        }
+        (rgb, truth, prior)
+    }
+
+    fn iou(labels: &[u8], truth: &[u8], bit: u8) -> f64 {
+        let (mut inter, mut union) = (0, 0);
+        for (l, t) in labels.iter().zip(truth) {
+            let (a, b) = (l & bit != 0, t & bit != 0);
+            inter += (a && b) as u32;
+            union += (a || b) as u32;
+        }
+        inter as f64 / union.max(1) as f64
+    }
+
+    /// With the mouth closed, what lies between the lips is lip: no interior is learned from
+    /// it (else every later lip would be labelled interior). The first picture that shows
+    /// the dark interior teaches it, and its posteriors say so.
+    #[test]
+    fn the_mouth_interior_is_learned_once_a_picture_shows_it() {
+        let (w, h) = (120, 80);
+        let settings = SegmentSettings {
+            reach: 0.06,
+            ..SegmentSettings::default()
+        };
+        let mut models = None;
+        let (rgb, truth, prior) = mouth_picture(0);
+        let Outcome::Labels(labels) =
+            segment_picture(&rgb, w, h, &prior, &mut models, &settings, None)
+        else {
+            panic!("in view and lit");
+        };
+        assert!(models.as_ref().unwrap().mouth.is_none());
+        assert!(labels.iter().all(|l| l & MOUTH_BIT == 0));
+        assert!(iou(&labels, &truth, UPPER_BIT) > 0.8);
+        let (rgb, truth, prior) = mouth_picture(8);
+        let mut posteriors = Vec::new();
+        let Outcome::Labels(labels) = segment_picture(
+            &rgb,
+            w,
+            h,
+            &prior,
+            &mut models,
+            &settings,
+            Some(&mut posteriors),
+        ) else {
+            panic!("in view and lit");
+        };
+        assert!(models.as_ref().unwrap().mouth.is_some());
+        let mouth = iou(&labels, &truth, MOUTH_BIT);
+        assert!(mouth > 0.7, "mouth IoU {mouth}");
+        for bit in [UPPER_BIT, LOWER_BIT] {
+            let teeth = iou(&labels, &truth, bit);
+            assert!(teeth > 0.8, "teeth IoU {teeth}");
+        }
+        // Red where a tooth is, green where the interior is, blue on the skin far away.
+        let at = |x: usize, y: usize| &posteriors[(y * w + x) * 3..(y * w + x) * 3 + 3];
+        assert!(at(60, 34)[0] > 200, "{:?}", at(60, 34));
+        assert!(at(60, 42)[1] > 200, "{:?}", at(60, 42));
+        assert_eq!(at(2, 2), [0, 0, 255]);
     }
 
     #[test]

@@ -1,7 +1,9 @@
 //! Colour frames of a synthetic capture, as a camera would film them, and the true labels
 //! they show: shaded crowns with highlights between the lips, the dark mouth interior, lips
 //! and skin with some texture, sensor noise, and a light that can be switched off (the sync
-//! event of the paper's Section 5).
+//! event of the paper's Section 5). [`Photos::Hard`] adds what real footage of a mouth has
+//! and the clean pictures lack: gums, the tongue, wet highlights, lips shading the crowns and
+//! motion blur (white balance and exposure drift are the writer's, per frame).
 
 use nalgebra::Vector3;
 use rand::RngExt;
@@ -35,18 +37,79 @@ const TEETH: [f64; 3] = [232.0, 222.0, 196.0];
 const MOUTH: [f64; 3] = [70.0, 24.0, 30.0];
 const LIP: [f64; 3] = [172.0, 84.0, 88.0];
 const SKIN: [f64; 3] = [212.0, 164.0, 138.0];
+const GUM: [f64; 3] = [196.0, 96.0, 108.0];
+const TONGUE: [f64; 3] = [178.0, 88.0, 96.0];
+/// How much gum shows beyond the crowns, where the lips leave it (mm at the subject).
+const GUM_MM: f64 = 2.0;
+
+/// How hard the pictures are to read.
+#[derive(Debug, Clone, Copy, Default, PartialEq, Eq)]
+pub enum Photos {
+    /// Teeth, the dark mouth interior, lips and skin; a little lens blur and sensor noise.
+    #[default]
+    Clean,
+    /// As a mouth is really filmed: pink gums beyond the crowns, the tongue filling the
+    /// bottom of the opening, wet highlights on enamel, lips and tongue, crowns shaded by
+    /// the lips, and motion blur (the pictures are the mean over the shutter's poses).
+    Hard,
+}
 /// How tall the lips are beyond the opening (mm at the subject).
 const LIP_HEIGHT_MM: f64 = 9.0;
 
+/// One picture: `shutter` holds the poses the subject passes through while the shutter is
+/// open (one for a still subject); the labels are those of the middle one.
+#[allow(clippy::too_many_arguments)]
 pub fn render_colour(
+    cam: &Camera,
+    meshes: [&Mesh; 2],
+    shutter: &[ArchPoses],
+    lips: &[LipLine; 2],
+    show: [f64; 2],
+    exposure: Exposure,
+    photos: Photos,
+    rng: &mut impl rand::Rng,
+) -> ColourFrame {
+    let (w, h) = (cam.width as usize, cam.height as usize);
+    let fields = Fields {
+        texture: SmoothNoise::new(w, h, 9, rng),
+        glints: SmoothNoise::new(w, h, 3, rng),
+    };
+    let mut linear = vec![[0f64; 3]; w * h];
+    let mut labels = Vec::new();
+    for (k, poses) in shutter.iter().enumerate() {
+        let (colours, drawn) = draw(cam, meshes, poses, lips, show, photos, &fields);
+        for (sum, c) in linear.iter_mut().zip(colours) {
+            for j in 0..3 {
+                sum[j] += c[j] / shutter.len() as f64;
+            }
+        }
+        if k == shutter.len() / 2 {
+            labels = drawn;
+        }
+    }
+    // A lens a little out of focus: [1 2 1] / 4 along rows, then columns.
+    let linear = blur(&blur(&linear, w, h, 1), w, h, w);
+    let rgb = expose(&linear, exposure, rng);
+    ColourFrame { rgb, labels }
+}
+
+/// The random fields a picture's surfaces share over the shutter.
+struct Fields {
+    texture: SmoothNoise,
+    /// Where wet surfaces catch the light.
+    glints: SmoothNoise,
+}
+
+/// The linear colours and true labels of the subject at one pose.
+fn draw(
     cam: &Camera,
     meshes: [&Mesh; 2],
     poses: &ArchPoses,
     lips: &[LipLine; 2],
     show: [f64; 2],
-    exposure: Exposure,
-    rng: &mut impl rand::Rng,
-) -> ColourFrame {
+    photos: Photos,
+    fields: &Fields,
+) -> (Vec<[f64; 3]>, Vec<u8>) {
     let (w, h) = (cam.width as usize, cam.height as usize);
     let target = render_target(
         cam,
@@ -64,7 +127,6 @@ pub fn render_colour(
         .z
         .max(1.0);
     let lip_px = cam.fx * LIP_HEIGHT_MM / depth;
-    let texture = SmoothNoise::new(w, h, 9, rng);
     let shading = Shading {
         cam,
         target: &target,
@@ -73,7 +135,10 @@ pub fn render_colour(
         // Light from just above the lens (a ring light), in camera axes: towards the subject
         // is +z.
         to_light: Vector3::new(0.0, -0.35, -1.0).normalize(),
+        wet: photos == Photos::Hard,
     };
+    let soft = (photos == Photos::Hard)
+        .then(|| SoftTissue::new(&target, &opening, w, h, cam.fx * GUM_MM / depth));
     let mut linear = vec![[0f64; 3]; w * h];
     let mut labels = vec![0u8; w * h];
     for y in 0..h {
@@ -81,23 +146,108 @@ pub fn render_colour(
             let i = y * w + x;
             let inside = (y as f64) > top && (y as f64) < bottom;
             let class = target.class[i];
-            let t = texture.at(x, y);
+            let t = fields.texture.at(x, y);
+            let glint = 255.0 * ((fields.glints.at(x, y) - 0.8) / 0.2).max(0.0).powi(2);
             let colour = if inside && class != 0 {
                 labels[i] = class;
-                shading.crown(x, y, class, t)
+                let crown = shading.crown(x, y, class, t);
+                match &soft {
+                    // Within a fifth of the lips' height of the opening's edge, the lip's
+                    // shadow.
+                    Some(_) => {
+                        let edge = (y as f64 - top).min(bottom - y as f64);
+                        let shade = 0.5 + 0.5 * (edge / (0.2 * lip_px)).min(1.0);
+                        crown.map(|c| c * shade)
+                    }
+                    None => crown,
+                }
             } else if inside {
                 labels[i] = MOUTH_LABEL;
-                mouth_colour(y, top, bottom, t)
+                match soft.as_ref().map(|s| s.at(x, y, top, bottom)) {
+                    Some(Some(Tissue::Gum)) => GUM.map(|c| c * (1.0 + 0.1 * t)),
+                    Some(Some(Tissue::Tongue)) => {
+                        TONGUE.map(|c| c * (0.85 + 0.15 * t) + 0.6 * glint)
+                    }
+                    _ => mouth_colour(y, top, bottom, t),
+                }
             } else {
-                face_colour(y, top, bottom, lip_px, t)
+                let face = face_colour(y, top, bottom, lip_px, t);
+                let on_lip = (top - y as f64).max(y as f64 - bottom) < lip_px;
+                if soft.is_some() && on_lip {
+                    face.map(|c| c + 0.5 * glint)
+                } else {
+                    face
+                }
             };
             linear[i] = colour;
         }
     }
-    // A lens a little out of focus: [1 2 1] / 4 along rows, then columns.
-    let linear = blur(&blur(&linear, w, h, 1), w, h, w);
-    let rgb = expose(&linear, exposure, rng);
-    ColourFrame { rgb, labels }
+    (linear, labels)
+}
+
+/// The soft tissue a hard picture shows inside the opening: gums just beyond the crowns
+/// (above the upper's, below the lower's), the tongue filling the bottom of the opening
+/// behind the lower teeth.
+struct SoftTissue {
+    /// Per column, the top row of the upper crowns and the bottom row of the lower crowns
+    /// inside the opening.
+    upper_top: Vec<f64>,
+    lower_bottom: Vec<f64>,
+    gum_px: f64,
+    /// The opening's middle column and half its width.
+    centre: f64,
+    half_width: f64,
+}
+
+enum Tissue {
+    Gum,
+    Tongue,
+}
+
+impl SoftTissue {
+    fn new(target: &Target, opening: &[(f64, f64)], w: usize, h: usize, gum_px: f64) -> Self {
+        let mut upper_top = vec![f64::INFINITY; w];
+        let mut lower_bottom = vec![f64::NEG_INFINITY; w];
+        let (mut first, mut last) = (f64::INFINITY, f64::NEG_INFINITY);
+        for (x, &(top, bottom)) in opening.iter().enumerate().take(w) {
+            if top < bottom {
+                first = first.min(x as f64);
+                last = last.max(x as f64);
+            }
+            for y in 0..h {
+                let yf = y as f64;
+                if yf <= top || yf >= bottom {
+                    continue;
+                }
+                match target.class[y * w + x] {
+                    UPPER_LABEL => upper_top[x] = upper_top[x].min(yf),
+                    LOWER_LABEL => lower_bottom[x] = lower_bottom[x].max(yf),
+                    _ => {}
+                }
+            }
+        }
+        SoftTissue {
+            upper_top,
+            lower_bottom,
+            gum_px,
+            centre: 0.5 * (first + last),
+            half_width: (0.5 * (last - first)).max(0.0),
+        }
+    }
+
+    fn at(&self, x: usize, y: usize, top: f64, bottom: f64) -> Option<Tissue> {
+        let yf = y as f64;
+        let gum_above = self.upper_top[x] - yf;
+        let gum_below = yf - self.lower_bottom[x];
+        if (gum_above > 0.0 && gum_above <= self.gum_px)
+            || (gum_below > 0.0 && gum_below <= self.gum_px)
+        {
+            return Some(Tissue::Gum);
+        }
+        let across = (x as f64 - self.centre) / (0.35 * self.half_width).max(1.0);
+        let down = (yf - top) / (bottom - top).max(1.0);
+        (across.abs() < 1.0 && down > 0.55 + 0.3 * across * across).then_some(Tissue::Tongue)
+    }
 }
 
 /// What shading a crown's pixel needs: the camera, what it drew, and the light.
@@ -108,6 +258,8 @@ struct Shading<'a> {
     h: usize,
     /// The unit direction towards the light, in camera axes.
     to_light: Vector3<f64>,
+    /// Wet enamel: a sharper, brighter highlight.
+    wet: bool,
 }
 
 impl Shading<'_> {
@@ -156,7 +308,11 @@ impl Shading<'_> {
         let n = self.normal(x, y, class, p);
         let diffuse = n.dot(&self.to_light).max(0.0);
         let half = (self.to_light - p.normalize()).normalize();
-        let specular = 0.55 * n.dot(&half).max(0.0).powi(40);
+        let specular = if self.wet {
+            1.2 * n.dot(&half).max(0.0).powi(80)
+        } else {
+            0.55 * n.dot(&half).max(0.0).powi(40)
+        };
         TEETH.map(|c| c * (1.0 + 0.05 * t) * (0.35 + 0.65 * diffuse) + 255.0 * specular)
     }
 }

@@ -4,6 +4,7 @@
 //! capture format exactly, deterministically per seed.
 
 pub mod colour;
+pub use colour::Photos;
 pub mod exercise;
 pub mod face;
 mod face_script;
@@ -128,6 +129,8 @@ pub struct SynthOptions {
     pub images: bool,
     /// Frames (capture numbers) during which the light is off in the colour pictures.
     pub light_off: Option<std::ops::Range<u32>>,
+    /// What the colour pictures show besides teeth, mouth, lips and skin.
+    pub photos: Photos,
 }
 
 impl Default for SynthOptions {
@@ -148,6 +151,7 @@ impl Default for SynthOptions {
             persistent_noise: false,
             images: false,
             light_off: None,
+            photos: Photos::Clean,
         }
     }
 }

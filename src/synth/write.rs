@@ -15,11 +15,13 @@ use crate::capture::json::{
 };
 use crate::error::Result;
 use crate::formats::{FrameRecordJson, TracksJson};
-use crate::geometry::Camera;
+use crate::geometry::{Camera, Pose};
 use crate::io::{write_atomic, write_json_atomic};
 use crate::mesh::write_obj;
 
-use super::colour::{Exposure, render_colour};
+use std::f64::consts::TAU;
+
+use super::colour::{Exposure, Photos, render_colour};
 use super::{
     CameraStats, LOWER_LABEL, MOUTH_LABEL, MaskKind, RenderedMask, Session, SynthOptions,
     SynthReport, UPPER_LABEL, encode_png, encode_png_rgb, render_mask,
@@ -125,12 +127,7 @@ fn write_cameras(dir: &Path, s: &Session, opts: &SynthOptions) -> Result<()> {
 /// One frame's true poses, its masks (and colour pictures when asked for) written out.
 fn film_frame(dir: &Path, s: &Session, opts: &SynthOptions, index: u32) -> Result<FilmedFrame> {
     let controls = s.controls(index, opts);
-    let upper = s.world_from_upper(index);
-    let jaw = s.jaw.jaw_pose(&controls);
-    let poses = ArchPoses {
-        upper,
-        lower: upper.compose(&jaw),
-    };
+    let poses = frame_poses(s, opts, index);
     let show = s.lip_show(index, opts);
     let stats = write_masks(dir, s, opts, index, &poses, show)?;
     if opts.images {
@@ -142,6 +139,52 @@ fn film_frame(dir: &Path, s: &Session, opts: &SynthOptions, index: u32) -> Resul
         controls,
         stats,
     })
+}
+
+/// How much further the lips are drawn back in hard photos (mm): enough to show the gums.
+const HARD_EXTRA_SHOW_MM: f64 = 5.0;
+
+/// Both arches' true poses at frame `index`.
+fn frame_poses(s: &Session, opts: &SynthOptions, index: u32) -> ArchPoses {
+    let upper = s.world_from_upper(index);
+    ArchPoses {
+        upper,
+        lower: upper.compose(&s.jaw.jaw_pose(&s.controls(index, opts))),
+    }
+}
+
+/// The poses the subject passes through while the shutter is open: the frame's alone, or
+/// for hard photos a half-frame shutter centred on it (a quarter of the way to each
+/// neighbouring frame's poses).
+fn shutter_poses(
+    s: &Session,
+    opts: &SynthOptions,
+    index: u32,
+    poses: &ArchPoses,
+) -> Vec<ArchPoses> {
+    if opts.photos != Photos::Hard || opts.frames < 2 {
+        return vec![*poses];
+    }
+    let towards = |other: u32| {
+        let o = frame_poses(s, opts, other);
+        let step =
+            |a: &Pose, b: &Pose| a.compose(&Pose::exp(&(a.inverse().compose(b).log() * 0.25)));
+        ArchPoses {
+            upper: step(&poses.upper, &o.upper),
+            lower: step(&poses.lower, &o.lower),
+        }
+    };
+    let before = if index > 0 {
+        towards(index - 1)
+    } else {
+        *poses
+    };
+    let after = if index + 1 < opts.frames {
+        towards(index + 1)
+    } else {
+        *poses
+    };
+    vec![before, *poses, after]
 }
 
 /// One frame's mask per mask camera (none with `no_masks`), written where one was drawn.
@@ -286,6 +329,12 @@ fn write_colour(
     poses: &ArchPoses,
     show: [f64; 2],
 ) -> Result<()> {
+    let shutter = &shutter_poses(s, opts, index, poses);
+    // Lips drawn back far enough to show the gums.
+    let show = match opts.photos {
+        Photos::Hard => show.map(|mm| mm + HARD_EXTRA_SHOW_MM),
+        Photos::Clean => show,
+    };
     for (c, cam) in s.mask_cameras.iter().enumerate() {
         // The camera's white balance stays; the light flickers a little from frame to frame.
         let mut camera_rng = ChaCha8Rng::seed_from_u64(opts.seed ^ (0xC0_10E5 + c as u64));
@@ -294,14 +343,25 @@ fn write_colour(
             opts.seed ^ ((index as u64) << 8 | c as u64).wrapping_mul(0xD1B5_4A32_D192_ED03),
         );
         let off = opts.light_off.as_ref().is_some_and(|r| r.contains(&index));
-        let gain = if off { 0.04 } else { 1.0 } * rng.random_range(0.98..=1.02);
+        let mut gain = if off { 0.04 } else { 1.0 } * rng.random_range(0.98..=1.02);
+        let mut white = white;
+        if opts.photos == Photos::Hard {
+            // The camera's automatic exposure and white balance wander over the take.
+            let phase: [f64; 4] = std::array::from_fn(|_| camera_rng.random_range(0.0..TAU));
+            let t = index as f64;
+            gain *= 1.0 + 0.12 * (TAU * t / 40.0 + phase[3]).sin();
+            for k in 0..3 {
+                white[k] *= 1.0 + 0.06 * (TAU * t / 55.0 + phase[k]).sin();
+            }
+        }
         let frame = render_colour(
             cam,
             [&s.upper, &s.lower],
-            poses,
+            shutter,
             &s.lips,
             show,
             Exposure { gain, white },
+            opts.photos,
             &mut rng,
         );
         let name = format!("{index:06}.png");
