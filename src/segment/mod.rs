@@ -8,6 +8,7 @@
 
 pub mod colour_model;
 mod distance;
+mod edges;
 pub mod graph_cut;
 pub mod picture;
 pub mod score;

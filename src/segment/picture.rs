@@ -5,6 +5,7 @@
 
 use super::colour_model::{ColourModel, luma};
 use super::distance::{distance_transform, mouth_span_distance};
+use super::edges::refine_edges;
 use super::graph_cut::GridCut;
 use super::seeds::{initial_classes, learn_interior};
 use super::settings::SegmentSettings;
@@ -22,6 +23,9 @@ pub struct Models {
     /// taken with the lights off.
     pub lit_luma: f32,
 }
+
+/// How far from the models' projection lips and skin are learned from, in reaches.
+const OTHER_REACH: f32 = 3.0;
 
 /// What one picture came out as.
 pub enum Outcome {
@@ -103,16 +107,28 @@ pub fn segment_picture(
     } else {
         Vec::new()
     };
-    let classes = cut_rounds(&colours, &priors, first, models, mean_luma, roi, settings);
+    // Lips and skin are learned from around the mouth alone: skin far from it, shaded as
+    // teeth can be, would teach the model teeth's colours, and there the prior decides.
+    let far: Vec<bool> = distance.iter().map(|&d| d > OTHER_REACH * reach).collect();
+    let classes = cut_rounds(
+        &colours, &priors, &far, first, models, mean_luma, roi, settings,
+    );
     let Some(classes) = classes else {
         return Outcome::OutOfView;
     };
+    let classes = refine_edges(
+        &colours,
+        &classes,
+        &eroded(&classes, roi.w, roi.h),
+        roi.w,
+        roi.h,
+    );
     if let (Some(out), Some(m)) = (posteriors, models.as_ref()) {
         *out = posterior_picture(&likelihoods(&colours, &priors, m), roi, width, height);
     }
     if !learning {
         let m = models.as_mut().expect("present");
-        follow_picture(&colours, &classes, roi, m, mean_luma, settings);
+        follow_picture(&colours, &classes, &far, roi, m, mean_luma, settings);
     }
     Outcome::Labels(picture_labels(&classes, &nearest, roi, width, height))
 }
@@ -142,9 +158,11 @@ fn spatial_priors(
 /// The classes after the graph cuts: when `models` is `None`, learned from `classes` (the
 /// first guess) and re-cut for the settings' learning rounds, else one cut with `models`.
 /// `None` when the teeth's colours cannot be learned.
+#[allow(clippy::too_many_arguments)]
 fn cut_rounds(
     colours: &[[u8; 3]],
     priors: &[[f32; 3]],
+    far: &[bool],
     mut classes: Vec<u8>,
     models: &mut Option<Models>,
     mean_luma: f32,
@@ -160,7 +178,7 @@ fn cut_rounds(
     };
     for _ in 0..rounds.max(1) {
         if learning {
-            let fresh = learn(colours, &classes, roi, settings.min_pixels)?;
+            let fresh = learn(colours, &classes, far, roi, settings.min_pixels)?;
             *models = Some(Models {
                 lit_luma: mean_luma,
                 ..fresh
@@ -177,6 +195,7 @@ fn cut_rounds(
 fn follow_picture(
     colours: &[[u8; 3]],
     classes: &[u8],
+    far: &[bool],
     roi: Roi,
     m: &mut Models,
     mean_luma: f32,
@@ -189,7 +208,7 @@ fn follow_picture(
         m.teeth.update(&f, rate);
     }
     // Lips and skin also from the edges, as on the first picture (`learn`).
-    if let Some(f) = learn_class(colours, classes, 2, settings.min_pixels) {
+    if let Some(f) = learn_class(colours, &near_only(classes, far), 2, settings.min_pixels) {
         m.other.update(&f, rate);
     }
     if let (Some(mouth), Some(f)) = (&mut m.mouth, fresh(1)) {
@@ -251,15 +270,31 @@ fn roi(prior: &[u8], width: usize, height: usize) -> Option<Roi> {
 /// must be likelier lip than tooth. Teeth too thin to have an inside learn from all of
 /// theirs. A mouth with too few interior pixels gets no model (a
 /// closed mouth shows none); lips and skin too few get a uniform one.
-fn learn(colours: &[[u8; 3]], classes: &[u8], roi: Roi, min_pixels: usize) -> Option<Models> {
+fn learn(
+    colours: &[[u8; 3]],
+    classes: &[u8],
+    far: &[bool],
+    roi: Roi,
+    min_pixels: usize,
+) -> Option<Models> {
     let inner = eroded(classes, roi.w, roi.h);
     Some(Models {
         teeth: learn_class(colours, &inner, 0, min_pixels)
             .or_else(|| learn_class(colours, classes, 0, min_pixels))?,
         mouth: learn_class(colours, &inner, 1, min_pixels),
-        other: learn_class(colours, classes, 2, min_pixels).unwrap_or_else(ColourModel::uniform),
+        other: learn_class(colours, &near_only(classes, far), 2, min_pixels)
+            .unwrap_or_else(ColourModel::uniform),
         lit_luma: 0.0,
     })
+}
+
+/// The classes with lips and skin `far` from the mouth left out (3 = unused).
+fn near_only(classes: &[u8], far: &[bool]) -> Vec<u8> {
+    classes
+        .iter()
+        .zip(far)
+        .map(|(&c, &f)| if c == 2 && f { 3 } else { c })
+        .collect()
 }
 
 fn learn_class(

@@ -46,11 +46,17 @@ pub(super) fn initial_classes(
             projected[i] != 0
                 && saturation(c) < pale_below
                 && match &models {
-                    (Some(inside), Some(around)) => inside.density(c) > 3.0 * around.density(c),
+                    (Some(inside), Some(around)) => inside.density(c) > RARITY * around.density(c),
                     _ => true,
                 }
         })
         .collect();
+    eprintln!(
+        "DBG pale_below {pale_below} otsu {:?} teeth {} of projected {}",
+        otsu(&pale),
+        teeth.iter().filter(|&&t| t).count(),
+        pale.len()
+    );
     let near: Vec<bool> = (0..n)
         .map(|i| span_distance[i] <= reach && !teeth[i])
         .collect();
@@ -88,6 +94,7 @@ pub(super) fn initial_classes(
 /// The mouth interior is at most this share of the teeth's luma (the median over the first
 /// guess of them): a throat in shadow, not a lip.
 const INTERIOR_SHARE: f32 = 0.45;
+const RARITY: f32 = 1.0;
 
 /// The median of some values; `None` of none.
 fn median(values: impl Iterator<Item = f32>) -> Option<f32> {
