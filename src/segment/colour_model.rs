@@ -1,12 +1,16 @@
 //! A colour model of one kind of surface (teeth, mouth interior, lips and skin): a histogram
-//! over chromaticity (r and g of r+g+b, 16 levels each) and luma (8 levels), smoothed across
+//! over chromaticity (r and g of r+g+b, 24 levels each) and luma (8 levels), smoothed across
 //! neighbouring bins so that colours a few levels apart count alike (sensor noise,
 //! compression), learned per capture from the pixels the segmentation gave that class and
 //! updated as tracking goes. Chromaticity apart from brightness keeps a tooth in its own
-//! shadow a tooth: shading changes its luma, hardly its hue.
+//! shadow a tooth: shading changes its luma, hardly its hue. The chromaticity levels are
+//! fine enough (1/24, about 0.04) to keep shaded enamel apart from skin under a warm white
+//! balance, whose chromaticities differ by about 0.04-0.05: at 1/16, smoothed, they share
+//! their bins, and a side camera, whose view of the teeth borders the cheek, took crowns for
+//! skin.
 
 /// Levels along each axis: r chromaticity, g chromaticity, luma.
-const AXES: [usize; 3] = [16, 16, 8];
+const AXES: [usize; 3] = [24, 24, 8];
 const BINS: usize = AXES[0] * AXES[1] * AXES[2];
 /// The density every bin keeps, as a share of the uniform density: no colour is impossible.
 const FLOOR: f32 = 0.01;

@@ -176,9 +176,11 @@ fn cut_rounds(
     } else {
         1
     };
-    for _ in 0..rounds.max(1) {
+    for round in 0..rounds.max(1) {
         if learning {
-            let fresh = learn(colours, &classes, far, roi, settings.min_pixels)?;
+            // The first guess is made of whole pixels of each colour, not of a cut's edges.
+            let cut_edges = round > 0;
+            let fresh = learn(colours, &classes, cut_edges, far, roi, settings.min_pixels)?;
             *models = Some(Models {
                 lit_luma: mean_luma,
                 ..fresh
@@ -265,19 +267,24 @@ fn roi(prior: &[u8], width: usize, height: usize) -> Option<Roi> {
 }
 
 /// Colour models from the pixels of each class (0 teeth, 1 mouth, 2 other; others unused).
-/// Teeth and mouth interior learn from inside their regions alone, lips and skin also from
-/// the edges, where a blurred picture mixes lip and skin (or lip and tooth): a mixed colour
-/// must be likelier lip than tooth. Teeth too thin to have an inside learn from all of
-/// theirs. A mouth with too few interior pixels gets no model (a
-/// closed mouth shows none); lips and skin too few get a uniform one.
+/// From a cut (`cut_edges`), teeth and mouth interior learn from inside their regions alone,
+/// lips and skin also from the edges, where a blurred picture mixes lip and skin (or lip and
+/// tooth): a mixed colour must be likelier lip than tooth. Teeth too thin to have an inside
+/// learn from all of theirs. A mouth with too few pixels gets no model (a closed mouth shows
+/// none); lips and skin too few get a uniform one.
 fn learn(
     colours: &[[u8; 3]],
     classes: &[u8],
+    cut_edges: bool,
     far: &[bool],
     roi: Roi,
     min_pixels: usize,
 ) -> Option<Models> {
-    let inner = eroded(classes, roi.w, roi.h);
+    let inner = if cut_edges {
+        eroded(classes, roi.w, roi.h)
+    } else {
+        classes.to_vec()
+    };
     Some(Models {
         teeth: learn_class(colours, &inner, 0, min_pixels)
             .or_else(|| learn_class(colours, classes, 0, min_pixels))?,

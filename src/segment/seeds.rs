@@ -20,12 +20,13 @@ pub(super) fn initial_classes(
     min_pixels: usize,
 ) -> Vec<u8> {
     let n = colours.len();
-    // Enamel is the least saturated of what the projection holds (lips, gums and the mouth
-    // are red), in light and in shadow alike: teeth are the paler side of a two-class split
-    // of saturation there, when the split is clear.
+    // Enamel is the least red of what the projection holds (lips, gums and the mouth are
+    // red), in light and in shadow and under any white balance near daylight's: teeth are the
+    // less red side of a two-class split of redness there, when the split is clear. (Not
+    // saturation: a yellowish white balance makes shaded enamel as saturated as a lip.)
     let pale: Vec<f32> = (0..n)
         .filter(|&i| projected[i] != 0)
-        .map(|i| saturation(colours[i]))
+        .map(|i| redness(colours[i]))
         .collect();
     let pale_below = otsu(&pale)
         .filter(|&(_, low, high)| low < 0.7 * high)
@@ -44,19 +45,13 @@ pub(super) fn initial_classes(
         .map(|i| {
             let c = colours[i];
             projected[i] != 0
-                && saturation(c) < pale_below
+                && redness(c) < pale_below
                 && match &models {
                     (Some(inside), Some(around)) => inside.density(c) > RARITY * around.density(c),
                     _ => true,
                 }
         })
         .collect();
-    eprintln!(
-        "DBG pale_below {pale_below} otsu {:?} teeth {} of projected {}",
-        otsu(&pale),
-        teeth.iter().filter(|&&t| t).count(),
-        pale.len()
-    );
     let near: Vec<bool> = (0..n)
         .map(|i| span_distance[i] <= reach && !teeth[i])
         .collect();
@@ -106,14 +101,10 @@ fn median(values: impl Iterator<Item = f32>) -> Option<f32> {
     Some(*v.select_nth_unstable_by(mid, f32::total_cmp).1)
 }
 
-/// Saturation as HSV has it, scaled to 0..255.
-fn saturation(c: [u8; 3]) -> f32 {
-    let (hi, lo) = (*c.iter().max().unwrap(), *c.iter().min().unwrap());
-    if hi == 0 {
-        0.0
-    } else {
-        255.0 * (hi - lo) as f32 / hi as f32
-    }
+/// How much redder than green a colour is, as a share of its brightness, scaled to 0..255.
+fn redness(c: [u8; 3]) -> f32 {
+    let [r, g, b] = c.map(|v| v as f32);
+    255.0 * (r - g).max(0.0) / (r + g + b).max(1.0)
 }
 
 /// Otsu's threshold of a set of values (0..255), with the two sides' means.
