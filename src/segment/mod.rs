@@ -6,6 +6,7 @@
 //! graph cuts make the labels spatially coherent (`picture`). Every mask is written in the
 //! capture format, so a user can look at any frame, correct it and track again.
 
+mod arches;
 pub mod colour_model;
 mod distance;
 mod edges;

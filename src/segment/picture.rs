@@ -3,6 +3,7 @@
 //! spatially coherent by two graph cuts (teeth against the rest, then mouth interior against
 //! lips and skin), with a contrast-sensitive smoothness term as in GrabCut.
 
+use super::arches::split_arches;
 use super::colour_model::{ColourModel, luma};
 use super::distance::{distance_transform, mouth_span_distance};
 use super::edges::refine_edges;
@@ -80,7 +81,7 @@ pub fn segment_picture(
     let at = |i: usize| roi.at(i);
     let colours: Vec<[u8; 3]> = (0..n).map(at).map(|(x, y)| colour(x, y)).collect();
     let projected: Vec<u8> = (0..n).map(at).map(|(x, y)| prior[y * width + x]).collect();
-    let (distance, nearest) = distance_transform(&projected, roi.w, roi.h);
+    let (distance, _) = distance_transform(&projected, roi.w, roi.h);
     let span_distance = mouth_span_distance(&projected, roi.w, roi.h, reach as usize);
     let priors = spatial_priors(&projected, &distance, &span_distance, reach);
     let mean_luma = (colours.iter().map(|&c| luma(c) as f64).sum::<f64>() / n as f64) as f32;
@@ -130,7 +131,18 @@ pub fn segment_picture(
         let m = models.as_mut().expect("present");
         follow_picture(&colours, &classes, &far, roi, m, mean_luma, settings);
     }
-    Outcome::Labels(picture_labels(&classes, &nearest, roi, width, height))
+    let teeth: Vec<bool> = classes.iter().map(|&c| c == 0).collect();
+    let arches = split_arches(
+        &colours,
+        &teeth,
+        &projected,
+        roi.w,
+        roi.h,
+        contrast(&colours, roi.w, roi.h),
+        settings.smoothness as f32,
+        reach,
+    );
+    Outcome::Labels(picture_labels(&classes, &arches, roi, width, height))
 }
 
 /// Spatial priors per ROI pixel (teeth, mouth interior, the rest): teeth only near the models'
@@ -219,20 +231,14 @@ fn follow_picture(
     m.lit_luma += rate * (mean_luma - m.lit_luma);
 }
 
-/// The whole picture's label bits from the ROI's classes: teeth take the nearest arch's bit
-/// (`nearest`), the mouth interior MOUTH_BIT, the rest 0.
-fn picture_labels(
-    classes: &[u8],
-    nearest: &[u8],
-    roi: Roi,
-    width: usize,
-    height: usize,
-) -> Vec<u8> {
+/// The whole picture's label bits from the ROI's classes: teeth take their arch's bit
+/// (`arches`), the mouth interior MOUTH_BIT, the rest 0.
+fn picture_labels(classes: &[u8], arches: &[u8], roi: Roi, width: usize, height: usize) -> Vec<u8> {
     let mut labels = vec![0u8; width * height];
     for (i, &class) in classes.iter().enumerate() {
         let (x, y) = roi.at(i);
         labels[y * width + x] = match class {
-            0 => nearest[i],
+            0 => arches[i],
             1 => MOUTH_BIT,
             _ => 0,
         };
