@@ -11,7 +11,12 @@ use crate::arch::{LOWER_BIT, UPPER_BIT};
 
 /// How far (in reaches) the picture may move the line between the arches from where the
 /// expected poses draw it: the data term grows by one nat over this distance.
-const SPLIT_REACH: f32 = 3.0;
+const SPLIT_REACH: f32 = 2.0;
+/// The smoothness of this cut as a share of the others'. Where teeth touch without an edge
+/// between them, a line across the arch costs its length in smoothness wherever it runs,
+/// and giving one arch's crowns to the other costs nothing of it: the line must stay
+/// cheaper than what the data term charges for that.
+const SPLIT_SMOOTHNESS: f32 = 1.0 / 3.0;
 
 /// Per pixel of a `w` x `h` region, UPPER_BIT or LOWER_BIT where `teeth` is true, else 0.
 /// `projected`: the label bits of the arches drawn at the expected poses; `colours`: the
@@ -53,7 +58,7 @@ pub(super) fn split_arches(
                     let d: f32 = (0..3)
                         .map(|k| (colours[i][k] as f32 - colours[j][k] as f32).powi(2))
                         .sum();
-                    smoothness * (-d / (2.0 * beta)).exp()
+                    SPLIT_SMOOTHNESS * smoothness * (-d / (2.0 * beta)).exp()
                 } else {
                     0.0
                 }
