@@ -94,7 +94,7 @@ pub fn segment_picture(
     if let Some(m) = models.as_mut()
         && m.mouth.is_none()
     {
-        m.mouth = learn_interior(&colours, &priors, m, settings.min_pixels);
+        m.mouth = learn_interior(&colours, &priors, &m.teeth, &m.other, settings.min_pixels);
     }
     let first: Vec<u8> = if learning {
         initial_classes(
@@ -478,6 +478,11 @@ mod tests {
     use super::*;
     use crate::arch::{LOWER_BIT, UPPER_BIT};
 
+    /// A surface's colour at (x, y), with a little texture.
+    fn textured(c: [u8; 3], x: usize, y: usize) -> [u8; 3] {
+        c.map(|v| v.saturating_add(((x * 7 + y * 13) % 9) as u8))
+    }
+
     /// A picture of a white band (teeth) over a dark gap, inside red lips, on skin; the
     /// prior is the band shifted by two pixels and a little too wide, as a pose a frame
     /// old would draw it.
@@ -499,10 +504,7 @@ mod tests {
                 } else {
                     ([210, 160, 135], 0)
                 };
-                let noise = ((x * 7 + y * 13) % 9) as u8;
-                for k in 0..3 {
-                    rgb[i * 3 + k] = c[k].saturating_add(noise);
-                }
+                rgb[i * 3..i * 3 + 3].copy_from_slice(&textured(c, x, y));
                 truth[i] = t;
                 if (28..92).contains(&x) && (25..44).contains(&y) {
                     prior[i] = UPPER_BIT;
@@ -562,10 +564,7 @@ mod tests {
                 } else {
                     ([210, 160, 135], 0)
                 };
-                let noise = ((x * 7 + y * 13) % 9) as u8;
-                for k in 0..3 {
-                    rgb[i * 3 + k] = c[k].saturating_add(noise);
-                }
+                rgb[i * 3..i * 3 + 3].copy_from_slice(&textured(c, x, y));
                 truth[i] = t;
                 if across && (26..38).contains(&y) {
                     prior[i] = UPPER_BIT;

@@ -4,7 +4,6 @@
 //! between its lips is lip).
 
 use super::colour_model::{ColourModel, luma};
-use super::picture::Models;
 
 /// A first guess of the classes, to learn the colour models from. The models' projection
 /// holds teeth and whatever hides them (lips, gums, the mouth's shadow): teeth are its
@@ -139,10 +138,11 @@ fn otsu(values: &[f32]) -> Option<(f32, f32, f32)> {
 pub(super) fn learn_interior(
     colours: &[[u8; 3]],
     priors: &[[f32; 3]],
-    m: &Models,
+    teeth: &ColourModel,
+    other: &ColourModel,
     min_pixels: usize,
 ) -> Option<ColourModel> {
-    let teeth_like = |i: usize| m.teeth.density(colours[i]) > m.other.density(colours[i]);
+    let teeth_like = |i: usize| teeth.density(colours[i]) > other.density(colours[i]);
     let teeth_luma = median(
         (0..colours.len())
             .filter(|&i| priors[i][0] > priors[i][2] && teeth_like(i))
