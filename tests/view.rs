@@ -102,7 +102,7 @@ fn the_page_loads_offline_and_the_opening_slider_moves_only_the_jaw() {
         .unwrap();
     assert!((opening - 20.0).abs() < 0.05, "opening {opening}");
     let after_box = f64s(&b.js(moving_box));
-    let after = b.canvas_shot();
+    let after = b.canvas_shot_changed_from(&before);
     if let Some(dir) = std::env::var_os("JAWTRACK_VIEW_SHOTS") {
         let dir = PathBuf::from(dir);
         before.save(dir.join("before.png")).unwrap();

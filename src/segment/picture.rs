@@ -1,7 +1,9 @@
 //! One camera's picture segmented into teeth (per arch), visible mouth interior and the rest,
 //! from where the models project (the spatial prior) and the capture's colour models, made
-//! spatially coherent by two graph cuts (teeth against the rest, then mouth interior against
-//! lips and skin), with a contrast-sensitive smoothness term as in GrabCut.
+//! spatially coherent by graph cuts with a contrast-sensitive smoothness term as in GrabCut
+//! (teeth against the rest, then mouth interior against lips and skin), the edges decided
+//! again by colour (`edges`), and the teeth split between the arches by a third cut
+//! (`arches`).
 
 use super::arches::split_arches;
 use super::colour_model::{ColourModel, luma};

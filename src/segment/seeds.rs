@@ -31,7 +31,7 @@ pub(super) fn initial_classes(
         .filter(|&(_, low, high)| low < 0.7 * high)
         .map_or(f32::INFINITY, |(t, _, _)| t);
     // Skin the projection reaches at the mouth's corners can be as pale: teeth are also the
-    // colours far commoner inside the projection than in the ring around it.
+    // colours commoner inside the projection than in the ring around it.
     let ring = |i: usize| projected[i] == 0 && distance[i] <= 4.0 * reach;
     let learn_where = |inside: &dyn Fn(usize) -> bool| {
         ColourModel::learn(
@@ -46,7 +46,7 @@ pub(super) fn initial_classes(
             projected[i] != 0
                 && redness(c) < pale_below
                 && match &models {
-                    (Some(inside), Some(around)) => inside.density(c) > RARITY * around.density(c),
+                    (Some(inside), Some(around)) => inside.density(c) > around.density(c),
                     _ => true,
                 }
         })
@@ -88,7 +88,6 @@ pub(super) fn initial_classes(
 /// The mouth interior is at most this share of the teeth's luma (the median over the first
 /// guess of them): a throat in shadow, not a lip.
 const INTERIOR_SHARE: f32 = 0.45;
-const RARITY: f32 = 1.0;
 
 /// The median of some values; `None` of none.
 fn median(values: impl Iterator<Item = f32>) -> Option<f32> {

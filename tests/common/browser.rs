@@ -197,6 +197,20 @@ impl Browser {
         image::load_from_memory(&png).unwrap().to_rgba8()
     }
 
+    /// The canvas again, once it differs from `earlier` (or after two seconds, as it is): a
+    /// headless browser's element screenshot can come from a frame the compositor presented
+    /// before the page's last draw, most often on a loaded machine.
+    pub fn canvas_shot_changed_from(&self, earlier: &image::RgbaImage) -> image::RgbaImage {
+        let started = Instant::now();
+        loop {
+            let shot = self.canvas_shot();
+            if shot != *earlier || started.elapsed() > Duration::from_secs(2) {
+                return shot;
+            }
+            std::thread::sleep(Duration::from_millis(100));
+        }
+    }
+
     /// A real mouse click at `at` (viewport pixels).
     pub fn click(&self, at: [f64; 2]) {
         let (x, y) = (at[0].round() as i64, at[1].round() as i64);
