@@ -42,6 +42,9 @@ const TONGUE: [f64; 3] = [178.0, 88.0, 96.0];
 /// How much gum shows beyond the crowns, where the lips leave it (mm at the subject).
 const GUM_MM: f64 = 2.0;
 
+/// How tall the lips are beyond the opening (mm at the subject).
+const LIP_HEIGHT_MM: f64 = 9.0;
+
 /// How hard the pictures are to read.
 #[derive(Debug, Clone, Copy, Default, PartialEq, Eq)]
 pub enum Photos {
@@ -53,8 +56,6 @@ pub enum Photos {
     /// the lips, and motion blur (the pictures are the mean over the shutter's poses).
     Hard,
 }
-/// How tall the lips are beyond the opening (mm at the subject).
-const LIP_HEIGHT_MM: f64 = 9.0;
 
 /// One picture: `shutter` holds the poses the subject passes through while the shutter is
 /// open (one for a still subject); the labels are those of the middle one.
