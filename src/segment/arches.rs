@@ -7,6 +7,7 @@
 
 use super::distance::distance_transform;
 use super::graph_cut::GridCut;
+use super::smoothness::set_pairs;
 use crate::arch::{LOWER_BIT, UPPER_BIT};
 
 /// How far (in reaches) the picture may move the line between the arches from where the
@@ -47,30 +48,14 @@ pub(super) fn split_arches(
             cut.set_costs(i, a - low, b - low);
         }
     }
-    for y in 0..h {
-        for x in 0..w {
-            let i = y * w + x;
-            if !teeth[i] {
-                continue;
-            }
-            let weight = |j: usize| {
-                if teeth[j] {
-                    let d: f32 = (0..3)
-                        .map(|k| (colours[i][k] as f32 - colours[j][k] as f32).powi(2))
-                        .sum();
-                    SPLIT_SMOOTHNESS * smoothness * (-d / (2.0 * beta)).exp()
-                } else {
-                    0.0
-                }
-            };
-            if x + 1 < w {
-                cut.set_pair(i, false, weight(i + 1));
-            }
-            if y + 1 < h {
-                cut.set_pair(i, true, weight(i + w));
-            }
-        }
-    }
+    set_pairs(
+        &mut cut,
+        colours,
+        (w, h),
+        beta,
+        SPLIT_SMOOTHNESS * smoothness,
+        &|i| !teeth[i],
+    );
     let upper = cut.solve();
     (0..w * h)
         .map(|i| match (teeth[i], upper[i]) {

@@ -15,6 +15,7 @@ pub mod picture;
 pub mod score;
 mod seeds;
 pub mod settings;
+mod smoothness;
 
 use std::path::Path;
 

@@ -12,6 +12,7 @@ use super::edges::refine_edges;
 use super::graph_cut::GridCut;
 use super::seeds::{initial_classes, learn_interior};
 use super::settings::SegmentSettings;
+use super::smoothness::{contrast, set_pairs};
 use crate::capture::masks::MOUTH_BIT;
 
 /// The colour models of one camera: teeth, mouth interior, lips and skin.
@@ -113,8 +114,9 @@ pub fn segment_picture(
     // Lips and skin are learned from around the mouth alone: skin far from it, shaded as
     // teeth can be, would teach the model teeth's colours, and there the prior decides.
     let far: Vec<bool> = distance.iter().map(|&d| d > OTHER_REACH * reach).collect();
+    let beta = contrast(&colours, roi.w, roi.h);
     let classes = cut_rounds(
-        &colours, &priors, &far, first, models, mean_luma, roi, settings,
+        &colours, &priors, beta, &far, first, models, mean_luma, roi, settings,
     );
     let Some(classes) = classes else {
         return Outcome::OutOfView;
@@ -140,7 +142,7 @@ pub fn segment_picture(
         &projected,
         roi.w,
         roi.h,
-        contrast(&colours, roi.w, roi.h),
+        beta,
         settings.smoothness as f32,
         reach,
     );
@@ -176,6 +178,7 @@ fn spatial_priors(
 fn cut_rounds(
     colours: &[[u8; 3]],
     priors: &[[f32; 3]],
+    beta: f32,
     far: &[bool],
     mut classes: Vec<u8>,
     models: &mut Option<Models>,
@@ -184,7 +187,6 @@ fn cut_rounds(
     settings: &SegmentSettings,
 ) -> Option<Vec<u8>> {
     let learning = models.is_none();
-    let beta = contrast(colours, roi.w, roi.h);
     let rounds = if learning {
         settings.learning_rounds
     } else {
@@ -349,31 +351,6 @@ fn eroded(classes: &[u8], w: usize, h: usize) -> Vec<u8> {
         .collect()
 }
 
-/// GrabCut's β: the mean squared colour difference between neighbours.
-fn contrast(colours: &[[u8; 3]], w: usize, h: usize) -> f32 {
-    let (mut sum, mut count) = (0f64, 0usize);
-    for y in 0..h {
-        for x in 0..w {
-            let i = y * w + x;
-            if x + 1 < w {
-                sum += difference(colours[i], colours[i + 1]) as f64;
-                count += 1;
-            }
-            if y + 1 < h {
-                sum += difference(colours[i], colours[i + w]) as f64;
-                count += 1;
-            }
-        }
-    }
-    ((sum / count.max(1) as f64) as f32).max(1.0)
-}
-
-fn difference(a: [u8; 3], b: [u8; 3]) -> f32 {
-    (0..3)
-        .map(|k| (a[k] as f32 - b[k] as f32).powi(2))
-        .sum::<f32>()
-}
-
 /// Per ROI pixel, prior times colour density of teeth, mouth interior (0 while it has no
 /// model), and lips and skin.
 fn likelihoods(colours: &[[u8; 3]], priors: &[[f32; 3]], m: &Models) -> Vec<[f32; 3]> {
@@ -420,36 +397,13 @@ fn cut(
     let likelihood = likelihoods(colours, priors, m);
     let cost = |p: f32| -(p.max(1e-12)).ln();
     let lambda = settings.smoothness as f32;
-    let pairs = |g: &mut GridCut, skip: &dyn Fn(usize) -> bool| {
-        for y in 0..h {
-            for x in 0..w {
-                let i = y * w + x;
-                if skip(i) {
-                    continue;
-                }
-                let weight = |j: usize| {
-                    if skip(j) {
-                        0.0
-                    } else {
-                        lambda * (-difference(colours[i], colours[j]) / (2.0 * beta)).exp()
-                    }
-                };
-                if x + 1 < w {
-                    g.set_pair(i, false, weight(i + 1));
-                }
-                if y + 1 < h {
-                    g.set_pair(i, true, weight(i + w));
-                }
-            }
-        }
-    };
     let mut teeth_cut = GridCut::new(w, h);
     for (i, l) in likelihood.iter().enumerate() {
         let (a, b) = (cost(l[0]), cost(l[1] + l[2]));
         let low = a.min(b);
         teeth_cut.set_costs(i, a - low, b - low);
     }
-    pairs(&mut teeth_cut, &|_| false);
+    set_pairs(&mut teeth_cut, colours, (w, h), beta, lambda, &|_| false);
     let teeth = teeth_cut.solve();
     let mut mouth_cut = GridCut::new(w, h);
     for (i, l) in likelihood.iter().enumerate() {
@@ -460,7 +414,7 @@ fn cut(
         let low = a.min(b);
         mouth_cut.set_costs(i, a - low, b - low);
     }
-    pairs(&mut mouth_cut, &|i| teeth[i]);
+    set_pairs(&mut mouth_cut, colours, (w, h), beta, lambda, &|i| teeth[i]);
     let mouth = mouth_cut.solve();
     (0..n)
         .map(|i| {
