@@ -103,7 +103,11 @@ impl ContourEdges {
         spacing_px: f64,
         region: Option<&[bool]>,
     ) -> Vec<ContourPoint> {
-        self.sampled(mesh, world_from_model, cam, spacing_px, region, true)
+        let mut out = Vec::new();
+        self.sampled(mesh, world_from_model, cam, spacing_px, region, |_, p| {
+            out.push(p)
+        });
+        out
     }
 
     /// Only the edges where a face of `region` meets one outside it and neither is turned
@@ -116,11 +120,34 @@ impl ContourEdges {
         spacing_px: f64,
         region: &[bool],
     ) -> Vec<ContourPoint> {
-        self.sampled(mesh, world_from_model, cam, spacing_px, Some(region), false)
+        self.contour_and_region_edges(mesh, world_from_model, cam, spacing_px, region)
+            .1
     }
 
-    /// The samples of the silhouette edges (when `silhouettes`) and of the edges where
-    /// `region` meets the rest of the mesh.
+    /// [`Self::contour`] and [`Self::region_edges`] at once: the mesh placed and projected,
+    /// and its edges walked, once for both.
+    pub fn contour_and_region_edges(
+        &self,
+        mesh: &Mesh,
+        world_from_model: &Pose,
+        cam: &Camera,
+        spacing_px: f64,
+        region: &[bool],
+    ) -> (Vec<ContourPoint>, Vec<ContourPoint>) {
+        let (mut contour, mut edges) = (Vec::new(), Vec::new());
+        let sink = |silhouette: bool, p| {
+            if silhouette {
+                contour.push(p)
+            } else {
+                edges.push(p)
+            }
+        };
+        self.sampled(mesh, world_from_model, cam, spacing_px, Some(region), sink);
+        (contour, edges)
+    }
+
+    /// The samples of the silhouette edges and of the edges where `region` meets the rest of
+    /// the mesh, each given to `sink` with whether it is of a silhouette.
     fn sampled(
         &self,
         mesh: &Mesh,
@@ -128,8 +155,8 @@ impl ContourEdges {
         cam: &Camera,
         spacing_px: f64,
         region: Option<&[bool]>,
-        silhouettes: bool,
-    ) -> Vec<ContourPoint> {
+        mut sink: impl FnMut(bool, ContourPoint),
+    ) {
         let view = View { cam };
         let world: Vec<Vector3<f64>> = mesh
             .points()
@@ -137,7 +164,6 @@ impl ContourEdges {
             .collect();
         // Each vertex projected once: an edge's ends and opposite vertices are shared.
         let pixels: Vec<Option<Vector2<f64>>> = world.iter().map(|p| view.pixel(p)).collect();
-        let mut out = Vec::new();
         for e in &self.edges {
             let [a, b] = e.ends.map(|v| world[v as usize]);
             let (Some(pa), Some(pb)) = (pixels[e.ends[0] as usize], pixels[e.ends[1] as usize])
@@ -164,7 +190,6 @@ impl ContourEdges {
                 (e.faces == 2 && a != b).then_some(if a { first } else { -first })
             });
             let normal = match (silhouette, inside) {
-                (true, _) if !silhouettes => continue,
                 (true, _) => -first * across,
                 (false, Some(inside)) => -inside * across,
                 (false, None) => continue,
@@ -174,17 +199,17 @@ impl ContourEdges {
                 let s = (i as f64 + 0.5) / n as f64;
                 let p = a + (b - a) * s;
                 if let Some((pixel, inv_depth, jacobian)) = view.point(&p) {
-                    out.push(ContourPoint {
+                    let point = ContourPoint {
                         pixel,
                         normal,
                         length: length / n as f64,
                         inv_depth,
                         jacobian,
-                    });
+                    };
+                    sink(silhouette, point);
                 }
             }
         }
-        out
     }
 }
 

@@ -4,6 +4,7 @@
 //! and its counts follow from the mask totals.
 
 use std::cell::RefCell;
+use std::collections::VecDeque;
 use std::sync::{Arc, Mutex};
 
 use rayon::prelude::*;
@@ -40,10 +41,14 @@ pub struct CpuEnergy {
     /// Per arch: which faces face away from a camera, for a closed mesh.
     away: [Option<AwaySign>; 2],
     frame: Vec<Option<PreparedMask>>,
-    /// The other arch as last drawn: a search holds it still while it moves the scored arch,
+    /// The other arch as lately drawn: a search holds it still while it moves the scored arch,
     /// so it is rasterised once per pose rather than once per candidate.
-    other: Mutex<Option<Arc<OtherArch>>>,
+    other: Mutex<VecDeque<Arc<OtherArch>>>,
 }
+
+/// How many drawings of the other arch are kept: a solver's candidates alternate between a
+/// few poses of each arch (a result and its start), and each drawing is a whole arch.
+const OTHER_ARCHES_KEPT: usize = 4;
 
 /// The other arch drawn alone at one pose, per camera, over its own footprint.
 struct OtherArch {
@@ -97,17 +102,14 @@ impl CpuEnergy {
             scene,
             region,
             frame: (0..n).map(|_| None).collect(),
-            other: Mutex::new(None),
+            other: Mutex::new(VecDeque::new()),
         }
     }
 
-    /// The other arch drawn at `pose`, from the cache when it was drawn there last.
+    /// The other arch drawn at `pose`, from the cache when it was drawn there lately.
     fn other_arch(&self, arch: Arch, pose: &Pose) -> Arc<OtherArch> {
         let mut cached = self.other.lock().unwrap_or_else(|e| e.into_inner());
-        if let Some(c) = cached
-            .as_ref()
-            .filter(|c| c.arch == arch && c.pose == *pose)
-        {
+        if let Some(c) = cached.iter().find(|c| c.arch == arch && c.pose == *pose) {
             return c.clone();
         }
         let mesh = self.scene.mesh(arch);
@@ -131,7 +133,10 @@ impl CpuEnergy {
             pose: *pose,
             targets,
         });
-        *cached = Some(drawn.clone());
+        if cached.len() == OTHER_ARCHES_KEPT {
+            cached.pop_front();
+        }
+        cached.push_back(drawn.clone());
         drawn
     }
 

@@ -39,7 +39,7 @@ use super::search::GaussNewtonSettings;
 use super::search::RADIUS_MM;
 use crate::arch::ArchPoses;
 use crate::energy::contour::{ContourEdges, ContourPoint, bilinear};
-use crate::energy::raster::render_target;
+use crate::energy::raster::render_target_fitted;
 use crate::energy::target::{CLASS_BODY, CLASS_BOI, Target};
 use crate::geometry::{Camera, Pose, hat};
 use crate::mesh::Mesh;
@@ -65,7 +65,7 @@ pub struct JointView<'a> {
 /// penalties of the objective, as least squares.
 pub struct JawHinge<'a> {
     /// How far (mm) the jaw pose lies outside what anatomy allows.
-    pub distance_mm: &'a dyn Fn(&Pose) -> f64,
+    pub distance_mm: &'a (dyn Fn(&Pose) -> f64 + Sync),
     pub tolerance_mm: f64,
     /// Cost per mm² beyond the tolerance, in the silhouette residuals' unit (pixels of area
     /// times pixels of offset).
@@ -177,14 +177,27 @@ fn samples(
 ) -> Vec<Sample> {
     let classes = classes(apart);
     let pose = [poses.upper, poses.lower];
-    // The cameras draw and sample in parallel.
+    // The cameras draw and sample in parallel, and each camera's drawing and its two arches'
+    // contours too.
     let per_view = views.par_iter().enumerate().map(|(v, view)| {
-        let mut out = Vec::new();
         let items: Vec<_> = (0..2)
             .map(|a| (arches[a].0, &pose[a], classes[a][0], classes[a][1]))
             .collect();
-        let target = render_target(view.camera, &items);
-        for (a, &(mesh, edges)) in arches.iter().enumerate() {
+        let contour_of = |a: usize| {
+            let (mesh, edges) = arches[a];
+            if mesh.boi.iter().any(|&b| b) {
+                edges.contour_and_region_edges(mesh, &pose[a], view.camera, spacing_px, &mesh.boi)
+            } else {
+                let contour = edges.contour(mesh, &pose[a], view.camera, spacing_px);
+                (contour, Vec::new())
+            }
+        };
+        let (target, contours) = rayon::join(
+            || render_target_fitted(view.camera, &items),
+            || rayon::join(|| contour_of(0), || contour_of(1)),
+        );
+        let mut out = Vec::new();
+        for (a, (contour, region)) in [contours.0, contours.1].into_iter().enumerate() {
             let own = classes[a];
             let rendered = |inside: &[u8], point: &ContourPoint| {
                 let read = |x: Vector2<f64>| class_read(&target, inside, x);
@@ -206,7 +219,7 @@ fn samples(
                     kind,
                 })
             };
-            for point in edges.contour(mesh, &pose[a], view.camera, spacing_px) {
+            for point in contour {
                 if let Some(class) = shown(&point, &target, &own, &|b| !own.contains(&b)) {
                     let point = rendered(&own, &point);
                     push(
@@ -217,13 +230,10 @@ fn samples(
                     );
                 }
             }
-            if mesh.boi.iter().any(|&b| b) {
-                for point in edges.region_edges(mesh, &pose[a], view.camera, spacing_px, &mesh.boi)
-                {
-                    if shown(&point, &target, &own[1..], &|b| b == own[0]).is_some() {
-                        let point = rendered(&own[1..], &point);
-                        push(point, Kind::Region);
-                    }
+            for point in region {
+                if shown(&point, &target, &own[1..], &|b| b == own[0]).is_some() {
+                    let point = rendered(&own[1..], &point);
+                    push(point, Kind::Region);
                 }
             }
         }
@@ -248,21 +258,26 @@ fn hinge_rows(hinges: &[JawHinge], poses: &ArchPoses) -> Vec<(f64, Vector6<f64>)
     let residual = |h: &JawHinge, xi: &Vector6<f64>| {
         h.stiffness.sqrt() * ((h.distance_mm)(&moved_jaw(poses, xi)) - h.tolerance_mm).max(0.0)
     };
+    // The jaw moved by ±step along each of its six directions, then not at all; the contact
+    // depth is a search over the arches' surfaces, so the thirteen run in parallel.
+    let moves: Vec<Vector6<f64>> = (0..13)
+        .map(|i| {
+            let mut xi = Vector6::zeros();
+            if i < 12 {
+                let k = i / 2;
+                xi[k] = if i % 2 == 0 { 1.0 } else { -1.0 } * STEP[(k >= 3) as usize];
+            }
+            xi
+        })
+        .collect();
     hinges
         .iter()
         .map(|h| {
-            let r0 = residual(h, &Vector6::zeros());
-            let mut row = Vector6::zeros();
-            for k in 0..6 {
-                let step = STEP[(k >= 3) as usize];
-                let mut xi = Vector6::zeros();
-                xi[k] = step;
-                let plus = residual(h, &xi);
-                xi[k] = -step;
-                let minus = residual(h, &xi);
-                row[k] = (plus - minus) / (2.0 * step);
-            }
-            (r0, row)
+            let r: Vec<f64> = moves.par_iter().map(|xi| residual(h, xi)).collect();
+            let row = Vector6::from_fn(|k, _| {
+                (r[2 * k] - r[2 * k + 1]) / (2.0 * STEP[(k >= 3) as usize])
+            });
+            (r[12], row)
         })
         .collect()
 }
@@ -384,6 +399,35 @@ fn edge_terms(
     lambda: f64,
     s: &GaussNewtonSettings,
 ) -> (Matrix12, Vector12, [usize; 2]) {
+    // In chunks of a fixed size, summed in order: as fast on any number of threads, and the
+    // same sums on all of them (a resumed run writes the very bytes of an uninterrupted one).
+    let partial: Vec<(Matrix12, Vector12, [usize; 2])> = frozen
+        .par_chunks(EDGE_TERMS_CHUNK)
+        .map(|chunk| edge_terms_of(chunk, views, moved, reach, lambda, s))
+        .collect();
+    let mut h = Matrix12::zeros();
+    let mut g = Vector12::zeros();
+    let mut found = [0; 2];
+    for (ph, pg, pf) in partial {
+        h += ph;
+        g += pg;
+        found = [found[0] + pf[0], found[1] + pf[1]];
+    }
+    (h, g, found)
+}
+
+/// Samples a thread sums at a time in [`edge_terms`].
+const EDGE_TERMS_CHUNK: usize = 256;
+
+/// [`edge_terms`] of some of the samples.
+fn edge_terms_of(
+    frozen: &[Sample],
+    views: &[JointView],
+    moved: &[Vector6<f64>; 2],
+    reach: f64,
+    lambda: f64,
+    s: &GaussNewtonSettings,
+) -> (Matrix12, Vector12, [usize; 2]) {
     let mut h = Matrix12::zeros();
     let mut g = Vector12::zeros();
     let mut found = [0; 2];
@@ -452,6 +496,7 @@ mod tests {
     use super::*;
     use crate::anatomy::{procedural_arch, rest_bite};
     use crate::energy::contour::bilinear;
+    use crate::energy::raster::render_target;
     use crate::track::align::tests::looking_at_origin;
 
     /// Both procedural arches at a bite opened by `open` (rad about the lateral axis), seen by
