@@ -26,7 +26,7 @@ fn capture(meshes: Option<&Path>, dir: &Path, max_triangles: Option<usize>) -> C
     // The meshes as given (or cut to `max_triangles`): what each case names.
     let open = OpenOptions {
         max_triangles,
-        simplify_mm: 0.0,
+        simplify_mm: Some(0.0),
         ..OpenOptions::default()
     };
     Capture::open_with(dir, open).expect("open the benchmark capture")

@@ -89,15 +89,15 @@ fn a_synthetic_capture_on_the_real_scans_loads_back() {
     let full = Capture::open_with(
         &out,
         OpenOptions {
-            simplify_mm: 0.0,
+            simplify_mm: Some(0.0),
             ..OpenOptions::default()
         },
     )
     .unwrap();
     assert_eq!(full.upper().triangles.len(), report.triangles[0]);
     assert!(full.upper().boi_face_count() > 1000);
-    // By default the arches are simplified within 0.02 mm: far fewer triangles, and the
-    // same picture to within a few edge pixels of the masks' resolution.
+    // By default the arches are simplified within a tenth of a mask pixel: far fewer
+    // triangles, and the same picture but for a few of its edge pixels.
     let c = Capture::open(&out).unwrap();
     for (name, a, b) in [
         ("upper", &full.upper(), &c.upper()),
@@ -129,10 +129,32 @@ fn a_synthetic_capture_on_the_real_scans_loads_back() {
         let (a, b) = (draw(&full), draw(&c));
         let drawn = a.iter().filter(|&&v| v != 0).count();
         let differ = a.iter().zip(&b).filter(|(x, y)| x != y).count();
+        // The pixels of the full scans' picture beside another label: where a silhouette
+        // moved by a tenth of a pixel can change one.
+        let w = cam.width as usize;
+        let edge = (0..a.len())
+            .filter(|&i| {
+                let (x, y) = (i % w, i / w);
+                let mut near = vec![];
+                if x > 0 {
+                    near.push(i - 1);
+                }
+                if x + 1 < w {
+                    near.push(i + 1);
+                }
+                if y > 0 {
+                    near.push(i - w);
+                }
+                if i + w < a.len() {
+                    near.push(i + w);
+                }
+                a[i] != 0 && near.iter().any(|&j| a[j] != a[i])
+            })
+            .count();
         assert!(drawn > 1000, "{}: {drawn} model pixels", cam.name);
         assert!(
-            (differ as f64) < 0.003 * drawn as f64,
-            "{}: {differ} of {drawn} pixels differ",
+            (differ as f64) < 0.1 * edge as f64,
+            "{}: {differ} of {drawn} pixels differ ({edge} on edges)",
             cam.name
         );
     }

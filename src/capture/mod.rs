@@ -6,6 +6,7 @@ pub mod json;
 pub mod masks;
 mod open;
 mod paths;
+pub mod resolution;
 pub use paths::{Folder, capture_reads, listed_file_inside, path_inside};
 
 use std::collections::BTreeSet;
@@ -94,6 +95,8 @@ pub struct Capture {
     notes: Vec<String>,
     /// Masks are read at 1/`mask_reduce` of their resolution ([`OpenOptions::mask_reduce`]).
     mask_reduce: u32,
+    /// How far (mm) the arches were simplified at load; `None`: to a triangle count.
+    simplified_mm: Option<f64>,
     init: Option<Init>,
     gt: Option<Vec<FramePoses>>,
 }
@@ -102,6 +105,11 @@ impl Capture {
     /// The capture folder.
     pub fn dir(&self) -> &Path {
         &self.dir
+    }
+    /// How far (mm) from the scans' surfaces the arches were simplified at load; `None` where
+    /// they were simplified to a triangle count.
+    pub fn simplified_mm(&self) -> Option<f64> {
+        self.simplified_mm
     }
     /// The cameras, in capture.json's order.
     pub fn cameras(&self) -> &[CaptureCamera] {
@@ -182,8 +190,9 @@ pub struct OpenOptions {
     /// Simplify each arch to at most this many triangles at load (before `simplify_mm`).
     pub max_triangles: Option<usize>,
     /// Otherwise simplify each arch as far as its surface stays within this distance (mm) of
-    /// the scan's; 0 keeps every triangle. See [`DEFAULT_SIMPLIFY_MM`].
-    pub simplify_mm: f64,
+    /// the scan's; 0 keeps every triangle; `None`: a tenth of a mask pixel where the cameras
+    /// look ([`resolution::simplify_mm`]).
+    pub simplify_mm: Option<f64>,
     /// Read the masks at 1/k of their resolution (each k x k block takes its most common
     /// label; the cameras are scaled as for any smaller mask): the energy's cost falls with the
     /// pixel count, its precision with the pixel size. 1 reads them as they are.
@@ -196,16 +205,11 @@ pub struct OpenOptions {
     pub masks_to_come: bool,
 }
 
-/// The default simplification bound: 0.02 mm, about a twentieth of a pixel of a GoPro's
-/// half-resolution mask at 20 cm (0.4 mm a pixel). A 85k-triangle scan keeps about 23k
-/// triangles, a 4x cheaper energy; a silhouette cannot tell the difference.
-pub const DEFAULT_SIMPLIFY_MM: f64 = 0.02;
-
 impl Default for OpenOptions {
     fn default() -> Self {
         OpenOptions {
             max_triangles: None,
-            simplify_mm: DEFAULT_SIMPLIFY_MM,
+            simplify_mm: None,
             mask_reduce: 1,
             allow_outside: false,
             masks_to_come: false,

@@ -7,7 +7,7 @@ use std::path::{Path, PathBuf};
 
 use super::json::{self, BoiJson, CaptureJson};
 use super::paths::{self, Folder};
-use super::{Capture, CaptureCamera, MaskMode, OpenOptions, masks, read_camera};
+use super::{Capture, CaptureCamera, MaskMode, OpenOptions, masks, read_camera, resolution};
 use crate::error::{Error, Result};
 use crate::formats::read_poses;
 use crate::mesh::{BoiSource, Mesh, Simplify};
@@ -70,7 +70,16 @@ impl<'a> Opening<'a> {
             .map(|(i, name)| self.camera(&cj, i, name, mask_mode, &offsets))
             .collect::<Result<Vec<_>>>()?;
         self.check_frames(&cj, &cameras, &mask_dir)?;
-        let (upper, lower, mandible) = self.meshes(&cj)?;
+        // Where no bound is given, the cameras say how fine a silhouette they can see.
+        let simplified_mm = match self.options.max_triangles {
+            Some(_) => None,
+            None => Some(
+                self.options
+                    .simplify_mm
+                    .unwrap_or_else(|| resolution::simplify_mm(&cameras)),
+            ),
+        };
+        let (upper, lower, mandible) = self.meshes(&cj, simplified_mm)?;
         let mut capture = Capture {
             dir: self.dir.to_path_buf(),
             cameras,
@@ -84,6 +93,7 @@ impl<'a> Opening<'a> {
             mouth,
             notes,
             mask_reduce: self.options.mask_reduce.max(1),
+            simplified_mm,
             init: None,
             gt: None,
         };
@@ -243,7 +253,11 @@ impl<'a> Opening<'a> {
 
     /// Both arches (simplified as the options say) with their boundary of interest, and the
     /// mandible if named.
-    fn meshes(&self, cj: &CaptureJson) -> Result<(Mesh, Mesh, Option<Mesh>)> {
+    fn meshes(
+        &self,
+        cj: &CaptureJson,
+        simplified_mm: Option<f64>,
+    ) -> Result<(Mesh, Mesh, Option<Mesh>)> {
         let (upper_boi, lower_boi) = match &cj.boi {
             BoiJson::Group { group } => {
                 (BoiRef::Group(group.clone()), BoiRef::Group(group.clone()))
@@ -260,9 +274,9 @@ impl<'a> Opening<'a> {
                 BoiRef::List(p) => BoiSource::FaceList(p),
             };
             let mesh = Mesh::load(&path, source)?;
-            Ok(match self.options.max_triangles {
-                Some(n) => mesh.simplified(Simplify::MaxTriangles(n)),
-                None => mesh.simplified(Simplify::MaxErrorMm(self.options.simplify_mm)),
+            Ok(match (self.options.max_triangles, simplified_mm) {
+                (Some(n), _) => mesh.simplified(Simplify::MaxTriangles(n)),
+                (None, bound) => mesh.simplified(Simplify::MaxErrorMm(bound.unwrap_or(0.0))),
             })
         };
         let upper = load_mesh("meshes.upper", &cj.meshes.upper, &upper_boi)?;

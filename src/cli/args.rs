@@ -104,9 +104,11 @@ pub struct LoadArgs {
     #[arg(long, value_parser = count_in(4, 100_000_000))]
     pub max_triangles: Option<usize>,
     /// Simplify each arch as far as its surface stays within this distance (mm) of the
-    /// scan's; 0 keeps every triangle (a silhouette needs far fewer than a scan has).
-    #[arg(long, default_value_t = jawtrack::capture::DEFAULT_SIMPLIFY_MM, value_parser = non_negative_mm)]
-    pub simplify_mm: f64,
+    /// scan's; 0 keeps every triangle (a silhouette needs far fewer than a scan has). Default:
+    /// a tenth of a mask pixel where the cameras look (0.04 mm for half-resolution GoPro
+    /// masks at 20 cm).
+    #[arg(long, value_parser = non_negative_mm)]
+    pub simplify_mm: Option<f64>,
     /// Read the masks at 1/K of their resolution (each K x K block's most common label; K
     /// must divide the masks' sides): for masks larger than the time per frame allows, e.g.
     /// 4K video's. Drawing and counting cost about K² times less (setting up each triangle

@@ -106,10 +106,15 @@ fn lens(k: &jawtrack::geometry::Camera) -> String {
 
 /// The meshes as tracked: upper, lower and the mandible when there is one.
 fn meshes(c: &Capture) {
-    let describe = |name: &str, m: &jawtrack::mesh::Mesh| {
+    let simplified = match c.simplified_mm() {
+        Some(0.0) => "as loaded".to_string(),
+        Some(mm) => format!("simplified within {mm:.3} mm"),
+        None => "simplified to --max-triangles".to_string(),
+    };
+    let describe = |name: &str, m: &jawtrack::mesh::Mesh, how: &str| {
         let (lo, hi) = m.bounds();
         println!(
-            "mesh {name} as tracked (simplified at load): {} vertices, {} triangles, {} BOI triangles, size {:.1} x {:.1} x {:.1} mm",
+            "mesh {name} as tracked ({how}): {} vertices, {} triangles, {} BOI triangles, size {:.1} x {:.1} x {:.1} mm",
             m.positions.len(),
             m.triangles.len(),
             m.boi_face_count(),
@@ -118,10 +123,10 @@ fn meshes(c: &Capture) {
             hi[2] - lo[2]
         );
     };
-    describe("upper", c.upper());
-    describe("lower", c.lower());
+    describe("upper", c.upper(), &simplified);
+    describe("lower", c.lower(), &simplified);
     if let Some(m) = &c.mandible() {
-        describe("mandible", m);
+        describe("mandible", m, "as loaded");
     }
 }
 

@@ -30,10 +30,16 @@ struct Edge {
 }
 
 /// The mesh's edges with their faces, found once per mesh; edges of three or more faces (a
-/// non-manifold scan) are left out.
+/// non-manifold scan) are left out. Their vertices are numbered among the vertices the faces
+/// use: a simplified scan keeps every vertex of its file (for its numbering), most of them
+/// unused, and the contour places only the used ones.
 #[derive(Debug, Clone)]
 pub struct ContourEdges {
     edges: Vec<Edge>,
+    /// The mesh's vertex of each number the edges use, in the mesh's order.
+    vertices: Vec<u32>,
+    /// The mesh without its unused vertices, to draw (the same faces in the same order).
+    drawn: Mesh,
 }
 
 /// One sample of the silhouette contour.
@@ -75,7 +81,41 @@ impl ContourEdges {
         let mut edges: Vec<Edge> = on_edge.into_values().filter(|e| e.faces <= 2).collect();
         // A fixed order, so that a contour is the same from run to run.
         edges.sort_by_key(|e| e.ends);
-        ContourEdges { edges }
+        // Renumbered in the mesh's order, which keeps the edges' order too.
+        let mut number = vec![u32::MAX; mesh.positions.len()];
+        let mut vertices: Vec<u32> = mesh.triangles.iter().flatten().copied().collect();
+        vertices.sort_unstable();
+        vertices.dedup();
+        for (k, &v) in vertices.iter().enumerate() {
+            number[v as usize] = k as u32;
+        }
+        for e in &mut edges {
+            e.ends = e.ends.map(|v| number[v as usize]);
+            e.opposite = e.opposite.map(|v| number[v as usize]);
+        }
+        let drawn = Mesh {
+            positions: vertices
+                .iter()
+                .map(|&v| mesh.positions[v as usize])
+                .collect(),
+            triangles: mesh
+                .triangles
+                .iter()
+                .map(|t| t.map(|v| number[v as usize]))
+                .collect(),
+            boi: mesh.boi.clone(),
+        };
+        ContourEdges {
+            edges,
+            vertices,
+            drawn,
+        }
+    }
+
+    /// The mesh these edges are of, without its unused vertices: the same faces, drawn the
+    /// same.
+    pub fn drawn(&self) -> &Mesh {
+        &self.drawn
     }
 
     /// The contour of `mesh` (the mesh these edges are of) at `world_from_model` in `cam`,
@@ -158,9 +198,10 @@ impl ContourEdges {
         mut sink: impl FnMut(bool, ContourPoint),
     ) {
         let view = View { cam };
-        let world: Vec<Vector3<f64>> = mesh
-            .points()
-            .map(|p| world_from_model.transform_point(&p))
+        let world: Vec<Vector3<f64>> = self
+            .vertices
+            .iter()
+            .map(|&v| world_from_model.transform_point(&mesh.point(v as usize)))
             .collect();
         // Each vertex projected once: an edge's ends and opposite vertices are shared.
         let pixels: Vec<Option<Vector2<f64>>> = world.iter().map(|p| view.pixel(p)).collect();

@@ -181,7 +181,7 @@ fn samples(
     // contours too.
     let per_view = views.par_iter().enumerate().map(|(v, view)| {
         let items: Vec<_> = (0..2)
-            .map(|a| (arches[a].0, &pose[a], classes[a][0], classes[a][1]))
+            .map(|a| (arches[a].1.drawn(), &pose[a], classes[a][0], classes[a][1]))
             .collect();
         let contour_of = |a: usize| {
             let (mesh, edges) = arches[a];

@@ -109,7 +109,7 @@ pub fn energy(a: EnergyArgs) -> anyhow::Result<()> {
 /// simplification and simplified to `a.simplified` triangles when they are present.
 fn mesh_cases(a: &EnergyArgs) -> Vec<Case<'_>> {
     let full = OpenOptions {
-        simplify_mm: 0.0,
+        simplify_mm: Some(0.0),
         ..OpenOptions::default()
     };
     let lens = Some(jawtrack::synth::BARREL_LENS);
@@ -121,7 +121,7 @@ fn mesh_cases(a: &EnergyArgs) -> Vec<Case<'_>> {
         let scans = Some(a.scans.as_path());
         cases.push(("scan-tag0".into(), scans, full, None));
         cases.push((
-            format!("scan-tag0 {} mm", jawtrack::capture::DEFAULT_SIMPLIFY_MM),
+            "scan-tag0, default simplification".to_string(),
             scans,
             OpenOptions::default(),
             None,
