@@ -321,7 +321,7 @@ pub fn bilinear(
     on: impl Fn(u8) -> bool,
     x: Vector2<f64>,
 ) -> f64 {
-    let (fx, fy) = (x.x.floor(), x.y.floor());
+    let (fx, fy) = (floor(x.x), floor(x.y));
     let (tx, ty) = (x.x - fx, x.y - fy);
     let at = |i: f64, j: f64| {
         if i < 0.0 || j < 0.0 || i >= width as f64 || j >= height as f64 {
@@ -331,6 +331,13 @@ pub fn bilinear(
     };
     (1.0 - ty) * ((1.0 - tx) * at(fx, fy) + tx * at(fx + 1.0, fy))
         + ty * ((1.0 - tx) * at(fx, fy + 1.0) + tx * at(fx + 1.0, fy + 1.0))
+}
+
+/// `x.floor()` without the library call (the baseline x86-64 target has no rounding
+/// instruction), for reads of pixels around a point, exact for any pixel coordinate.
+fn floor(x: f64) -> f64 {
+    let t = x as i64 as f64;
+    if t > x { t - 1.0 } else { t }
 }
 
 /// The camera and the pose, for projecting world points with their Jacobians.

@@ -105,11 +105,17 @@ impl Contact {
 
     /// The column of a point in the upper model frame, if over the grid.
     fn cell(&self, p: &Vector3<f64>) -> Option<usize> {
-        let column = |k: usize| {
-            let c = ((p.dot(&self.across[k]) - self.origin[k]) / self.cell_mm).floor();
+        self.column([p.dot(&self.across[0]), p.dot(&self.across[1])])
+    }
+
+    /// The column at `plane` (a point's coordinates along `across`), if over the grid.
+    fn column(&self, plane: [f64; 2]) -> Option<usize> {
+        let index = |k: usize| {
+            // Truncation is the floor from zero up, and below zero is off the grid.
+            let c = (plane[k] - self.origin[k]) / self.cell_mm;
             (c >= 0.0 && c < self.size[k] as f64).then_some(c as usize)
         };
-        Some(column(0)? * self.size[1] + column(1)?)
+        Some(index(0)? * self.size[1] + index(1)?)
     }
 
     /// How far (mm) the lower arch reaches past the upper arch's surface at this jaw pose
@@ -118,16 +124,25 @@ impl Contact {
         // The DEEPEST deepest so far, deepest first (no allocation: this runs per candidate).
         let mut deepest = [f64::NEG_INFINITY; DEEPEST];
         let mut seen = 0;
+        // Only the moved points' coordinates along the map's three axes are read: each is
+        // the point's own along the axis carried back by the jaw, plus the jaw's shift.
+        let along = |axis: &Vector3<f64>| {
+            (
+                jaw.rotation.transpose() * axis,
+                axis.dot(&jaw.translation),
+            )
+        };
+        let (height, across) = (along(&self.axis), self.across.each_ref().map(along));
         for p in &self.points {
-            let q = jaw.transform_point(p);
-            let Some(lowest) = self.cell(&q).map(|i| self.lowest[i]) else {
+            let plane = across.map(|(a, shift)| a.dot(p) + shift);
+            let Some(lowest) = self.column(plane).map(|i| self.lowest[i]) else {
                 continue;
             };
             if !lowest.is_finite() {
                 continue;
             }
             seen += 1;
-            let d = q.dot(&self.axis) - lowest;
+            let d = height.0.dot(p) + height.1 - lowest;
             if d > deepest[DEEPEST - 1] {
                 let at = deepest.partition_point(|&x| x >= d);
                 deepest.copy_within(at..DEEPEST - 1, at + 1);
