@@ -255,7 +255,7 @@ impl EnergyEngine for CpuEnergy {
     fn set_frame(&mut self, masks: &FrameMasks) -> Result<()> {
         self.frame = masks
             .masks
-            .iter()
+            .par_iter()
             .map(|m| {
                 m.as_ref().map(|mask| PreparedMask {
                     totals: frame_totals(mask),

@@ -126,12 +126,8 @@ impl Contact {
         let mut seen = 0;
         // Only the moved points' coordinates along the map's three axes are read: each is
         // the point's own along the axis carried back by the jaw, plus the jaw's shift.
-        let along = |axis: &Vector3<f64>| {
-            (
-                jaw.rotation.transpose() * axis,
-                axis.dot(&jaw.translation),
-            )
-        };
+        let along =
+            |axis: &Vector3<f64>| (jaw.rotation.transpose() * axis, axis.dot(&jaw.translation));
         let (height, across) = (along(&self.axis), self.across.each_ref().map(along));
         for p in &self.points {
             let plane = across.map(|(a, shift)| a.dot(p) + shift);

@@ -84,12 +84,12 @@ impl JointFrame<'_> {
     /// the energies (upper, lower).
     fn score_both(
         &self,
-        engine: &dyn EnergyEngine,
+        known: &mut Known,
         candidates: &[ArchPoses],
     ) -> Result<Vec<(f64, [Energy; 2])>> {
         let weights = self.search.weights();
-        let upper = engine.evaluate(Arch::Upper, candidates)?;
-        let lower = engine.evaluate(Arch::Lower, candidates)?;
+        let upper = known.evaluate(Arch::Upper, candidates)?;
+        let lower = known.evaluate(Arch::Lower, candidates)?;
         Ok(upper
             .into_iter()
             .zip(lower)
@@ -111,9 +111,12 @@ impl JointFrame<'_> {
     ) -> Result<JointFound> {
         let weights = self.search.weights();
         let gn = &self.search.gauss_newton;
-        let mut evaluations = 0;
-        let scored = self.score_both(engine, starts)?;
-        evaluations += 2 * starts.len();
+        let known = &mut Known {
+            engine,
+            energies: Vec::new(),
+            evaluations: 0,
+        };
+        let scored = self.score_both(known, starts)?;
         let (k, _) = scored
             .iter()
             .enumerate()
@@ -134,8 +137,7 @@ impl JointFrame<'_> {
                     .iter()
                     .map(|j| start.with(Arch::Lower, start.upper.compose(j))),
             );
-            let energies = engine.evaluate(Arch::Lower, &options)?;
-            evaluations += options.len();
+            let energies = known.evaluate(Arch::Lower, &options)?;
             let (best, _) = options
                 .iter()
                 .zip(energies)
@@ -186,16 +188,53 @@ impl JointFrame<'_> {
         ];
         let (best, (_, energies)) = candidates
             .into_iter()
-            .zip(self.score_both(engine, &candidates)?)
+            .zip(self.score_both(known, &candidates)?)
             .min_by(|a, b| a.1.0.total_cmp(&b.1.0))
             .expect("candidates");
-        evaluations += 2 * candidates.len();
         Ok(JointFound {
             poses: best,
             energies,
-            evaluations,
+            evaluations: known.evaluations,
             steps,
             information,
         })
+    }
+}
+
+/// The energies a frame's solve has evaluated: a start, a prior's pose or the result may come
+/// back among later candidates, and an energy is a function of the poses alone (the frame's
+/// masks set).
+struct Known<'e> {
+    engine: &'e dyn EnergyEngine,
+    energies: Vec<(Arch, ArchPoses, Energy)>,
+    /// The engine's evaluations so far.
+    evaluations: usize,
+}
+
+impl Known<'_> {
+    /// `arch`'s energy at each candidate, evaluating only those not known yet.
+    fn evaluate(&mut self, arch: Arch, candidates: &[ArchPoses]) -> Result<Vec<Energy>> {
+        let find = |known: &[(Arch, ArchPoses, Energy)], c: &ArchPoses| {
+            known
+                .iter()
+                .find(|(a, p, _)| *a == arch && p == c)
+                .map(|(.., e)| e.clone())
+        };
+        let mut new: Vec<ArchPoses> = Vec::new();
+        for c in candidates {
+            if find(&self.energies, c).is_none() && !new.contains(c) {
+                new.push(*c);
+            }
+        }
+        if !new.is_empty() {
+            let energies = self.engine.evaluate(arch, &new)?;
+            self.evaluations += new.len();
+            self.energies
+                .extend(new.into_iter().zip(energies).map(|(c, e)| (arch, c, e)));
+        }
+        Ok(candidates
+            .iter()
+            .map(|c| find(&self.energies, c).expect("evaluated"))
+            .collect())
     }
 }
