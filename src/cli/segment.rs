@@ -75,7 +75,21 @@ pub fn run(mut args: Args) -> anyhow::Result<()> {
             capture.dir().join("init.json").display()
         );
     }
-    let sizes = prepare(&mut capture)?;
+    let mut sizes = prepare(&mut capture)?;
+    // Only now is the masks' size known (the pictures'): where no bound was given, the arches
+    // are simplified for it, as `track` simplifies them when it reads these masks.
+    if options.simplify_mm.is_none() && options.max_triangles.is_none() {
+        let bound = jawtrack::capture::resolution::simplify_mm(capture.cameras());
+        if Some(bound) != capture.simplified_mm() {
+            let options = jawtrack::capture::OpenOptions {
+                simplify_mm: Some(bound),
+                ..options
+            };
+            capture = Capture::open_with(&a.capture, options)
+                .with_context(|| format!("invalid capture {}", a.capture.display()))?;
+            sizes = prepare(&mut capture)?;
+        }
+    }
     let track_options = a.session_options(&capture)?;
     let session = Session::open(&capture, track_options)?;
     eprintln!("energy backend: {}", session.backend());
