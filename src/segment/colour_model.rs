@@ -75,6 +75,23 @@ impl ColourModel {
         })
     }
 
+    /// The same surface in shade as well: each colour also at every lower luma level, its
+    /// density falling by `falloff` a level. Shade scales a diffuse surface's brightness and
+    /// keeps its chromaticity; the pixels a model is learned from are mostly lit.
+    pub fn shaded(mut self, falloff: f32) -> ColourModel {
+        let levels = AXES[2];
+        for chroma in self.density.chunks_mut(levels) {
+            for l in (0..levels - 1).rev() {
+                chroma[l] = chroma[l].max(falloff * chroma[l + 1]);
+            }
+        }
+        let total: f32 = self.density.iter().sum();
+        for d in &mut self.density {
+            *d *= BINS as f32 / total;
+        }
+        self
+    }
+
     /// Every colour as likely as any: for a class with nothing yet to learn from.
     pub fn uniform() -> ColourModel {
         ColourModel {
@@ -109,5 +126,23 @@ mod tests {
         assert!(teeth.density([228, 216, 192]) > 100.0 * teeth.density([170, 80, 85]));
         assert!(teeth.density([0, 0, 255]) > 0.0);
         assert!(ColourModel::learn([[1, 2, 3]].into_iter(), 10).is_none());
+    }
+
+    /// Enamel learned lit; in shade (a third as bright, the same chromaticity) the plain
+    /// model has it at its floor, the shaded one far above; brighter than lit, and other
+    /// hues, gain nothing; the density stays a density.
+    #[test]
+    fn a_shaded_model_knows_its_colours_darker() {
+        let lit = [225u8, 215, 190];
+        let plain = ColourModel::learn((0..500).map(|_| lit), 10).unwrap();
+        let shaded = plain.clone().shaded(0.7);
+        let shade = lit.map(|v| v / 3);
+        assert!(shaded.density(shade) > 50.0 * plain.density(shade));
+        assert!(shaded.density(shade) < shaded.density(lit));
+        let lip = [170u8, 80, 85];
+        assert!(shaded.density(lip) <= plain.density(lip));
+        assert!(shaded.density([255, 250, 235]) <= plain.density([255, 250, 235]));
+        let total: f32 = shaded.density.iter().sum();
+        assert!((total - BINS as f32).abs() < 1e-2 * BINS as f32);
     }
 }

@@ -15,6 +15,10 @@ use super::settings::SegmentSettings;
 use super::smoothness::{contrast, set_pairs};
 use crate::capture::masks::MOUTH_BIT;
 
+/// How the teeth's colour model falls off a luma level into shade
+/// ([`ColourModel::shaded`]): the side teeth deep in an open mouth are in its shadow.
+const TEETH_SHADE_FALLOFF: f32 = 0.7;
+
 /// The colour models of one camera: teeth, mouth interior, lips and skin.
 #[derive(Debug, Clone)]
 pub struct Models {
@@ -223,7 +227,7 @@ fn follow_picture(
     let rate = settings.learning_rate;
     let fresh = |k: u8| learn_class(colours, &edges_out, k, settings.min_pixels);
     if let Some(f) = fresh(0) {
-        m.teeth.update(&f, rate);
+        m.teeth.update(&f.shaded(TEETH_SHADE_FALLOFF), rate);
     }
     // Lips and skin also from the edges, as on the first picture (`learn`).
     if let Some(f) = learn_class(colours, &near_only(classes, far), 2, settings.min_pixels) {
@@ -297,7 +301,8 @@ fn learn(
     };
     Some(Models {
         teeth: learn_class(colours, &inner, 0, min_pixels)
-            .or_else(|| learn_class(colours, classes, 0, min_pixels))?,
+            .or_else(|| learn_class(colours, classes, 0, min_pixels))?
+            .shaded(TEETH_SHADE_FALLOFF),
         mouth: learn_class(colours, &inner, 1, min_pixels),
         other: learn_class(colours, &near_only(classes, far), 2, min_pixels)
             .unwrap_or_else(ColourModel::uniform),
