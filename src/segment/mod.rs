@@ -11,6 +11,7 @@ pub mod colour_model;
 mod distance;
 mod edges;
 pub mod graph_cut;
+mod opening;
 pub mod picture;
 pub mod score;
 mod seeds;

@@ -10,6 +10,7 @@ use super::colour_model::{ColourModel, luma};
 use super::distance::{distance_transform, mouth_span_distance};
 use super::edges::refine_edges;
 use super::graph_cut::GridCut;
+use super::opening::inside_the_lips;
 use super::seeds::{initial_classes, learn_interior};
 use super::settings::SegmentSettings;
 use super::smoothness::{contrast, set_pairs};
@@ -139,6 +140,9 @@ pub fn segment_picture(
         let m = models.as_mut().expect("present");
         follow_picture(&colours, &classes, &far, roi, m, mean_luma, settings);
     }
+    // After the models followed the picture: the gums and tongue are labelled interior, not
+    // learned as its colours (they would teach it the lips').
+    let classes = inside_the_lips(&classes, roi.w, roi.h);
     let teeth: Vec<bool> = classes.iter().map(|&c| c == 0).collect();
     let arches = split_arches(
         &colours,
