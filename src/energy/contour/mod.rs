@@ -150,22 +150,9 @@ impl ContourEdges {
         out
     }
 
-    /// Only the edges where a face of `region` meets one outside it and neither is turned
-    /// away (no silhouette), normals pointing out of the region.
-    pub fn region_edges(
-        &self,
-        mesh: &Mesh,
-        world_from_model: &Pose,
-        cam: &Camera,
-        spacing_px: f64,
-        region: &[bool],
-    ) -> Vec<ContourPoint> {
-        self.contour_and_region_edges(mesh, world_from_model, cam, spacing_px, region)
-            .1
-    }
-
-    /// [`Self::contour`] and [`Self::region_edges`] at once: the mesh placed and projected,
-    /// and its edges walked, once for both.
+    /// [`Self::contour`], and apart from it the edges where a face of `region` meets one
+    /// outside it and neither is turned away (no silhouette), normals pointing out of the
+    /// region: the mesh placed and projected, and its edges walked, once for both.
     pub fn contour_and_region_edges(
         &self,
         mesh: &Mesh,
