@@ -401,77 +401,63 @@ fn edge_terms(
 ) -> (Matrix12, Vector12, [usize; 2]) {
     // In chunks of a fixed size, summed in order: as fast on any number of threads, and the
     // same sums on all of them (a resumed run writes the very bytes of an uninterrupted one).
-    let partial: Vec<(Matrix12, Vector12, [usize; 2])> = frozen
+    let chunk_terms = |chunk: &[Sample]| {
+        let mut h = Matrix12::zeros();
+        let mut g = Vector12::zeros();
+        let mut found = [0; 2];
+        for c in chunk {
+            let view = &views[c.view];
+            let here = ContourPoint {
+                pixel: c.point.pixel + c.point.jacobian * moved[c.arch],
+                ..c.point
+            };
+            let Some(d) = edge_offset(&here, view.masks[c.arch], reach) else {
+                continue;
+            };
+            // What the pixels between the sample and the edge cost (see the module's
+            // note): past a silhouette, the model's pixels outside the mask; short of it,
+            // the mask's pixels it leaves uncovered; past a BOI edge, BOI outside the mask.
+            let cost = match (c.kind, d < 0.0) {
+                (Kind::Silhouette { boi }, true) => {
+                    let at = here.pixel + 0.5 * d * here.normal;
+                    let extra = view.extra[c.arch].map_or(0.0, |e| e(at));
+                    extra + if boi { lambda } else { 0.0 }
+                }
+                (Kind::Silhouette { .. }, false) => 1.0,
+                (Kind::Region, true) => lambda,
+                (Kind::Region, false) => 0.0,
+            };
+            if cost == 0.0 {
+                continue;
+            }
+            // Tukey's weight on the offset, relative to the reach: an edge found far
+            // off is as likely another edge.
+            let u = d / reach;
+            let tukey = (1.0 - u * u).max(0.0).powi(2);
+            let w = cost * tukey * here.length / d.abs().max(s.smoothing_px);
+            let mut row = Vector12::zeros();
+            row.fixed_rows_mut::<6>(0).copy_from(&c.row);
+            if c.arch == 1 {
+                row.fixed_rows_mut::<6>(6).copy_from(&c.row);
+            }
+            h += w * row * row.transpose();
+            g += w * d * row;
+            found[c.arch] += 1;
+        }
+        (h, g, found)
+    };
+    let partial: Vec<_> = frozen
         .par_chunks(EDGE_TERMS_CHUNK)
-        .map(|chunk| edge_terms_of(chunk, views, moved, reach, lambda, s))
+        .map(chunk_terms)
         .collect();
-    let mut h = Matrix12::zeros();
-    let mut g = Vector12::zeros();
-    let mut found = [0; 2];
-    for (ph, pg, pf) in partial {
-        h += ph;
-        g += pg;
-        found = [found[0] + pf[0], found[1] + pf[1]];
-    }
-    (h, g, found)
+    partial.into_iter().fold(
+        (Matrix12::zeros(), Vector12::zeros(), [0; 2]),
+        |(h, g, f), (ph, pg, pf)| (h + ph, g + pg, [f[0] + pf[0], f[1] + pf[1]]),
+    )
 }
 
 /// Samples a thread sums at a time in [`edge_terms`].
 const EDGE_TERMS_CHUNK: usize = 256;
-
-/// [`edge_terms`] of some of the samples.
-fn edge_terms_of(
-    frozen: &[Sample],
-    views: &[JointView],
-    moved: &[Vector6<f64>; 2],
-    reach: f64,
-    lambda: f64,
-    s: &GaussNewtonSettings,
-) -> (Matrix12, Vector12, [usize; 2]) {
-    let mut h = Matrix12::zeros();
-    let mut g = Vector12::zeros();
-    let mut found = [0; 2];
-    for c in frozen {
-        let view = &views[c.view];
-        let here = ContourPoint {
-            pixel: c.point.pixel + c.point.jacobian * moved[c.arch],
-            ..c.point
-        };
-        let Some(d) = edge_offset(&here, view.masks[c.arch], reach) else {
-            continue;
-        };
-        // What the pixels between the sample and the edge cost (see the module's
-        // note): past a silhouette, the model's pixels outside the mask; short of it,
-        // the mask's pixels it leaves uncovered; past a BOI edge, BOI outside the mask.
-        let cost = match (c.kind, d < 0.0) {
-            (Kind::Silhouette { boi }, true) => {
-                let at = here.pixel + 0.5 * d * here.normal;
-                let extra = view.extra[c.arch].map_or(0.0, |e| e(at));
-                extra + if boi { lambda } else { 0.0 }
-            }
-            (Kind::Silhouette { .. }, false) => 1.0,
-            (Kind::Region, true) => lambda,
-            (Kind::Region, false) => 0.0,
-        };
-        if cost == 0.0 {
-            continue;
-        }
-        // Tukey's weight on the offset, relative to the reach: an edge found far
-        // off is as likely another edge.
-        let u = d / reach;
-        let tukey = (1.0 - u * u).max(0.0).powi(2);
-        let w = cost * tukey * here.length / d.abs().max(s.smoothing_px);
-        let mut row = Vector12::zeros();
-        row.fixed_rows_mut::<6>(0).copy_from(&c.row);
-        if c.arch == 1 {
-            row.fixed_rows_mut::<6>(6).copy_from(&c.row);
-        }
-        h += w * row * row.transpose();
-        g += w * d * row;
-        found[c.arch] += 1;
-    }
-    (h, g, found)
-}
 
 /// The information the masks of `views` give about `poses` (as [`JointAligned::information`]),
 /// at the finest reach: for frames another search found, so that the window weighs them too.
