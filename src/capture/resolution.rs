@@ -50,32 +50,22 @@ pub fn finest_pixel_mm(cameras: &[CaptureCamera]) -> Option<f64> {
 mod tests {
     use std::collections::BTreeSet;
 
-    use nalgebra::{Rotation3, Vector3};
+    use nalgebra::Vector3;
 
     use super::*;
-    use crate::geometry::{Distortion, Pose};
+    use crate::geometry::looking_at_origin;
 
-    /// A camera at `centre` looking at the origin, `fx` pixels of focal length at 1920x1080,
-    /// its masks `mask_width` wide.
+    /// A camera at `centre` looking at the origin with `fx` pixels of focal length at
+    /// 1920x1080, its masks `mask_width` wide.
     fn camera(centre: Vector3<f64>, fx: f64, mask_width: Option<u32>) -> CaptureCamera {
-        let forward = -centre.normalize();
-        let right = Vector3::new(0.0, -1.0, 0.0).cross(&forward).normalize();
-        let down = forward.cross(&right);
-        let rotation = Rotation3::from_matrix_unchecked(nalgebra::Matrix3::from_rows(&[
-            right.transpose(),
-            down.transpose(),
-            forward.transpose(),
-        ]));
         let calibrated = Camera {
-            name: "c".into(),
             width: 1920,
             height: 1080,
             fx,
             fy: fx,
             cx: 959.5,
             cy: 539.5,
-            distortion: Distortion::NONE,
-            camera_from_world: Pose::new(rotation, -(rotation * centre)),
+            ..looking_at_origin(centre)
         };
         CaptureCamera {
             calibrated,

@@ -136,6 +136,31 @@ impl Camera {
     }
 }
 
+/// A camera at `eye` looking at the origin (y down in the image), 640x480 with 800 px of
+/// focal length: for tests that need a view, not a calibration.
+#[cfg(test)]
+pub(crate) fn looking_at_origin(eye: Vector3<f64>) -> Camera {
+    let forward = (-eye).normalize();
+    let right = Vector3::new(0.0, -1.0, 0.0).cross(&forward).normalize();
+    let down = forward.cross(&right);
+    let r = nalgebra::Rotation3::from_matrix_unchecked(nalgebra::Matrix3::from_rows(&[
+        right.transpose(),
+        down.transpose(),
+        forward.transpose(),
+    ]));
+    Camera {
+        name: "c".into(),
+        width: 640,
+        height: 480,
+        fx: 800.0,
+        fy: 800.0,
+        cx: 320.0,
+        cy: 240.0,
+        distortion: Distortion::NONE,
+        camera_from_world: Pose::new(r, -(r * eye)),
+    }
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;

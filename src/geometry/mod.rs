@@ -10,6 +10,8 @@ mod se3;
 mod triangulate;
 
 pub use camera::Camera;
+#[cfg(test)]
+pub(crate) use camera::looking_at_origin;
 pub use distortion::Distortion;
 pub use rigid_fit::{RigidFitError, fit_rigid};
 pub use se3::{Pose, hat, jaw_pose, so3_exp, so3_log};

@@ -325,35 +325,12 @@ pub fn align_arch(engine: &dyn EnergyEngine, q: &ArchAlign) -> Result<Found> {
 
 #[cfg(test)]
 pub(crate) mod tests {
-    use nalgebra::{Rotation3, Vector3};
+    use nalgebra::Vector3;
 
     use super::*;
     use crate::energy::target::CLASS_NONE;
-    use crate::geometry::{Distortion, so3_exp};
-
-    /// A camera at `eye` looking at the origin (y down in the image).
-    pub(crate) fn looking_at_origin(eye: Vector3<f64>) -> Camera {
-        let forward = (-eye).normalize();
-        let right = Vector3::new(0.0, -1.0, 0.0).cross(&forward).normalize();
-        let down = forward.cross(&right);
-        let r = Rotation3::from_matrix_unchecked(nalgebra::Matrix3::from_rows(&[
-            right.transpose(),
-            down.transpose(),
-            forward.transpose(),
-        ]));
-        let camera_from_world = Pose::new(r, -(r * eye));
-        Camera {
-            name: "c".into(),
-            width: 640,
-            height: 480,
-            fx: 800.0,
-            fy: 800.0,
-            cx: 320.0,
-            cy: 240.0,
-            distortion: Distortion::NONE,
-            camera_from_world,
-        }
-    }
+    use crate::geometry::looking_at_origin;
+    use crate::geometry::so3_exp;
 
     /// An uneven box (no symmetry a silhouette could confuse), wound outwards.
     fn block() -> Mesh {

@@ -483,7 +483,7 @@ mod tests {
     use crate::anatomy::{procedural_arch, rest_bite};
     use crate::energy::contour::bilinear;
     use crate::energy::raster::render_target;
-    use crate::track::align::tests::looking_at_origin;
+    use crate::geometry::looking_at_origin;
 
     /// Both procedural arches at a bite opened by `open` (rad about the lateral axis), seen by
     /// three cameras 200 mm in front with per-arch teeth masks drawn at the truth, aligned
