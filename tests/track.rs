@@ -114,7 +114,8 @@ fn a_short_clean_sequence_is_tracked_accurately() {
 /// The Gauss-Newton solver (`--search gauss-newton`) tracks the same clean frames as well as
 /// the paper's search within a few hundredths of a millimetre, with a tenth of its energy
 /// evaluations; the experimental contour solver (`search.solver = contour`) within a few
-/// tenths, with fewer than half (docs/energy.md has the figures).
+/// tenths, with fewer than half (docs/energy.md has the figures). The default (`auto`) is
+/// the paper's search on these per-arch masks, which do not label the mouth.
 #[test]
 fn the_gauss_newton_and_contour_solvers_track_clean_frames_with_few_evaluations() {
     let t = tempfile::tempdir().unwrap();
@@ -140,8 +141,15 @@ fn the_gauss_newton_and_contour_solvers_track_clean_frames_with_few_evaluations(
         assert_eq!(s["frames"], 6);
         s[part]["mean_vertex_mm"]["median"].as_f64().unwrap()
     };
-    let (by_paper, paper) = run("paper.json", &[]);
+    let (by_paper, paper) = run("paper.json", &["--search", "paper"]);
     let (by_gn, gn) = run("gn.json", &["--search", "gauss-newton"]);
+    let frames = |path: &Path| -> serde_json::Value {
+        let t: serde_json::Value =
+            serde_json::from_str(&std::fs::read_to_string(path).unwrap()).unwrap();
+        t["frames"].clone()
+    };
+    let (_, auto) = run("auto.json", &[]);
+    assert_eq!(frames(&auto), frames(&paper), "auto on teeth masks alone");
     for part in ["upper", "lower", "jaw"] {
         let (m, p) = (median(&gn, part), median(&paper, part));
         assert!(
@@ -172,10 +180,10 @@ fn the_gauss_newton_and_contour_solvers_track_clean_frames_with_few_evaluations(
     assert_ne!(fp(&paper), fp(&gn));
 }
 
-/// Gauss-Newton on a realistic capture (lips over the gums, wandering boundaries, specular
-/// holes, the mouth labelled) tracks its first frames within the tracker's usual error, and a
-/// start it cannot bring back (a frame it finds lost) goes to the paper's search, which costs
-/// far more evaluations.
+/// Gauss-Newton, the default search on a realistic capture (lips over the gums, wandering
+/// boundaries, specular holes, the mouth labelled), tracks its first frames within the
+/// tracker's usual error, and a start it cannot bring back (a frame it finds lost) goes to the
+/// paper's search, which costs far more evaluations.
 #[test]
 fn gauss_newton_holds_realistic_frames_and_falls_back_when_lost() {
     let t = tempfile::tempdir().unwrap();
@@ -184,11 +192,12 @@ fn gauss_newton_holds_realistic_frames_and_falls_back_when_lost() {
     let out = t.path().join("gn.json");
     let run = |extra: &[&str]| {
         let mut args = vec!["track", cap.to_str().unwrap(), "-o", out.to_str().unwrap()];
-        args.extend(["--frames", "0..4", "--search", "gauss-newton", "--force"]);
+        args.extend(["--frames", "0..4", "--force"]);
         args.extend(extra);
         jawtrack(&args)
     };
-    run(&[]);
+    let text = String::from_utf8_lossy(&run(&[]).stdout).to_string();
+    assert!(text.contains(", search gauss-newton,"), "{text}");
     let s = score(&cap, &out);
     for part in ["upper", "lower", "jaw"] {
         let m = s[part]["mean_vertex_mm"]["median"].as_f64().unwrap();

@@ -72,6 +72,9 @@ choice!(JointArg => jawtrack::synth::Joint {
 });
 
 choice!(SearchArg => jawtrack::track::Solver {
+    /// gauss-newton where the masks label the mouth interior or are combined, paper on per-arch
+    /// teeth masks alone
+    Auto,
     /// The paper's derivative-free search of its energy, per arch (finite differences, golden
     /// section, local sampling)
     Paper,

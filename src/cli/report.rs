@@ -207,18 +207,20 @@ pub fn track_summary(output: &Path, s: &Summary) {
         if s.steps > 0 {
             // Time goes to the steps' drawing and sampling as well as to the evaluations.
             println!(
-                "time {:.2} s per frame ({} energy evaluations per frame, {:.1} Gauss-Newton steps), backend {}",
+                "time {:.2} s per frame ({} energy evaluations per frame, {:.1} Gauss-Newton steps), search {}, backend {}",
                 s.seconds / s.tracked_now as f64,
                 s.evaluations / s.tracked_now,
                 per_frame(s.steps),
+                s.solver.name(),
                 s.backend
             );
         } else {
             println!(
-                "time {:.2} s per frame ({} energy evaluations per frame, {:.2} ms each), backend {}",
+                "time {:.2} s per frame ({} energy evaluations per frame, {:.2} ms each), search {}, backend {}",
                 s.seconds / s.tracked_now as f64,
                 s.evaluations / s.tracked_now,
                 s.seconds * 1e3 / s.evaluations.max(1) as f64,
+                s.solver.name(),
                 s.backend
             );
         }

@@ -11,6 +11,7 @@ use super::locate::locate;
 use super::output::TracksWriter;
 use super::overlay;
 use super::score::{ScoreReport, score};
+use super::search::Solver;
 use super::sequence::{FrameResult, MaskSource, Status, track_frames};
 use super::settings::TrackSettings;
 use super::state::TrackState;
@@ -75,6 +76,8 @@ pub struct Summary {
     pub steps: usize,
     /// The engine and why it was chosen.
     pub backend: String,
+    /// The search that ran (`auto` resolved for the capture).
+    pub solver: Solver,
 }
 
 impl Summary {
@@ -217,6 +220,7 @@ impl<'c> Session<'c> {
             evaluations,
             steps,
             backend: self.backend,
+            solver: self.options.settings.for_capture(capture).search.solver,
         })
     }
 }

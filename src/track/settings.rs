@@ -6,7 +6,7 @@ use std::sync::Arc;
 
 use super::search::SearchSettings;
 use super::window::WindowSettings;
-use crate::capture::Capture;
+use crate::capture::{Capture, MaskMode};
 use crate::error::Result;
 use crate::geometry::Pose;
 use crate::io::Fnv;
@@ -246,14 +246,18 @@ impl TrackSettings {
     }
 
     /// The settings a capture is tracked with: `labelled`'s in place of the fields they
-    /// replace when its masks label the mouth and the over-mouth term is on.
+    /// replace when its masks label the mouth and the over-mouth term is on, and the solver
+    /// `auto` stands for.
     pub fn for_capture(&self, capture: &Capture) -> TrackSettings {
         let mut s = self.clone();
-        if capture.mouth().is_some() && self.search.mouth_weight > 0.0 {
+        let two_sided = capture.mouth().is_some() && self.search.mouth_weight > 0.0;
+        if two_sided {
             s.jaw_prior_grid = self.labelled.jaw_prior_grid;
             s.jaw_prior_nearest = self.labelled.jaw_prior_nearest;
             s.search.sample_rounds = self.labelled.sample_rounds;
         }
+        let combined = capture.mask_mode() == MaskMode::Combined;
+        s.search.solver = self.search.solver.for_masks(two_sided, combined);
         s
     }
 }
