@@ -238,6 +238,20 @@ impl Energy {
             m => self.uncovered() as f64 / m as f64,
         }
     }
+    /// The model drawn where the masks say something else is seen (the other arch's label,
+    /// the mouth interior; each where its term weighs in `w`), per mask pixel (0 without mask
+    /// pixels): near zero at the true pose whatever the lips hide, where the area error cannot
+    /// see an arch drawn over the open mouth.
+    pub fn misdrawn_share(&self, w: &Weights) -> f64 {
+        let counted = |on: f64, n: u64| if on > 0.0 { n } else { 0 };
+        match self.mask_pixels() {
+            0 => 0.0,
+            m => {
+                (counted(w.cross, self.cross()) + counted(w.mouth, self.over_mouth())) as f64
+                    / m as f64
+            }
+        }
+    }
 }
 
 /// What every backend renders: the cameras the masks are seen through (mask resolution,
@@ -295,4 +309,31 @@ pub trait EnergyEngine {
     fn name(&self) -> String;
     fn set_frame(&mut self, masks: &FrameMasks) -> Result<()>;
     fn evaluate(&self, arch: Arch, candidates: &[ArchPoses]) -> Result<Vec<Energy>>;
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn the_misdrawn_share_counts_the_weighed_terms_per_mask_pixel() {
+        let mut c = Counts::default();
+        c.bins[MASK_OWN * 3] = 60; // uncovered
+        c.bins[MASK_OWN * 3 + 1] = 40; // covered: 100 mask pixels in all
+        c.bins[MASK_OTHER * 3 + 1] = 5; // over the other arch's label
+        c.bins[MASK_MOUTH * 3 + 2] = 10; // BOI over the mouth interior
+        let two_cameras = Energy {
+            cameras: vec![c, c],
+        };
+        let both = Weights {
+            lambda: 0.4,
+            cross: 1.0,
+            mouth: 1.0,
+        };
+        assert!((two_cameras.misdrawn_share(&both) - 0.15).abs() < 1e-12);
+        let mouth_only = Weights { cross: 0.0, ..both };
+        assert!((two_cameras.misdrawn_share(&mouth_only) - 0.10).abs() < 1e-12);
+        assert_eq!(two_cameras.misdrawn_share(&Weights::paper(0.4)), 0.0);
+        assert_eq!(Energy::default().misdrawn_share(&both), 0.0);
+    }
 }

@@ -106,6 +106,12 @@ pub struct GaussNewtonSettings {
     /// typical one (or the tracker's bound of a low-confidence frame) goes to the paper's
     /// search.
     pub fallback_ratio: f64,
+    /// A frame where either arch is drawn over more than this share of its mask's pixels'
+    /// worth of what the masks say is not it (the other arch's label, the mouth interior) goes
+    /// to the paper's search too: an arch the steps left over the open mouth fits its own
+    /// label's area as well as the truth does. At the true pose the share is the masks' noise
+    /// (0.01-0.05 on realistic masks).
+    pub fallback_misdrawn: f64,
 }
 
 impl Default for GaussNewtonSettings {
@@ -120,6 +126,7 @@ impl Default for GaussNewtonSettings {
             manifold_stiffness: 1000.0,
             jaw_prior_nearest: 20,
             fallback_ratio: 1.5,
+            fallback_misdrawn: 0.1,
         }
     }
 }
@@ -140,6 +147,7 @@ impl GaussNewtonSettings {
         rules.number("motion_prior", self.motion_prior, 0.0, 1e9)?;
         rules.number("contact_stiffness", self.contact_stiffness, 0.0, 1e9)?;
         rules.number("manifold_stiffness", self.manifold_stiffness, 0.0, 1e9)?;
+        rules.number("fallback_misdrawn", self.fallback_misdrawn, 0.0, 1e9)?;
         rules.count(
             "jaw_prior_nearest",
             self.jaw_prior_nearest as u64,

@@ -320,8 +320,9 @@ fn track_frame(
         evaluations += found.evaluations;
         steps = found.steps;
         // A frame that fits worse than the recent ones (the confidence rule with the
-        // solver's own, stricter ratio) is taken over by the paper's search, with the whole
-        // jaw prior: an arch the masks barely show (lips closing) may have slid away.
+        // solver's own, stricter ratio), or with an arch drawn over what the masks say is not
+        // it, is taken over by the paper's search, with the whole jaw prior: an arch the masks
+        // barely show (lips closing) may have slid away.
         let worst = found
             .energies
             .iter()
@@ -331,7 +332,14 @@ fn track_frame(
             low_confidence_ratio: settings.search.gauss_newton.fallback_ratio,
             ..settings.clone()
         };
-        if confidence(&strict, state, worst) == Status::Ok {
+        let misdrawn = found
+            .energies
+            .iter()
+            .map(|e| e.misdrawn_share(&weights))
+            .fold(0.0, f64::max);
+        if confidence(&strict, state, worst) == Status::Ok
+            && misdrawn <= settings.search.gauss_newton.fallback_misdrawn
+        {
             let tracked = (found.poses, found.energies);
             let (poses, energies) = relocated(run, engine, masks, tracked, &mut evaluations)?;
             let information = (poses == found.poses).then_some(found.information);
