@@ -7,12 +7,14 @@ mod common;
 use common::template;
 use jawtrack::arch::{Arch, ArchPoses};
 use jawtrack::capture::{Capture, FrameMasks, LabelMask, MaskMode};
+use jawtrack::energy::contour::ContourEdges;
 use jawtrack::energy::gpu::{GpuEnergy, GpuError};
 use jawtrack::energy::hand_counted::{camera, nothing, square};
-use jawtrack::energy::{CpuEnergy, EnergyEngine, Region, Scene};
-use jawtrack::geometry::Pose;
+use jawtrack::energy::smooth::{self, EdgeParams, EdgeQuery};
+use jawtrack::energy::{CpuEnergy, EnergyEngine, Region, Scene, Weights};
+use jawtrack::geometry::{Camera, Pose};
 use jawtrack::synth::{MaskKind, Preset};
-use nalgebra::Vector3;
+use nalgebra::{Vector3, Vector6};
 use rand::{RngExt, SeedableRng};
 
 /// The GPU engine, or `None` (test skipped) when there is no adapter and none is required.
@@ -332,4 +334,124 @@ fn gpu_matches_cpu_through_rational_and_fisheye_lenses() {
         // grid snaps the other way a little more often.
         compare_on_synthetic(c, what, 3.0);
     }
+}
+
+/// The smooth energy's edge terms (shaders/edge_terms.wgsl) against the CPU twin, sample by
+/// sample, on synthetic frames whose masks label the mouth (so that every cost is read: the
+/// cross-label and over-mouth weights, the other arch's label), the samples drawn 0.5-1 px off
+/// the truth and moved by a further increment; and the GPU's gradient against central
+/// differences of its own energy.
+fn compare_edge_terms(capture: &std::path::Path, what: &str) {
+    let c = Capture::open(capture).unwrap();
+    let scene = Scene::from_capture(&c);
+    let Some(mut g) = gpu(scene.clone(), Region::Footprint) else {
+        return;
+    };
+    let mut cpu = CpuEnergy::new(scene.clone());
+    let edges = [ContourEdges::of(c.upper()), ContourEdges::of(c.lower())];
+    let apart = matches!(c.mask_mode(), MaskMode::PerArch { .. });
+    let (mut compared, mut differing, mut worst_offset) = (0, 0, 0.0f64);
+    for f in [0, 4] {
+        let frame = c.load_masks(f).unwrap();
+        g.set_frame(&frame).unwrap();
+        cpu.set_frame(&frame).unwrap();
+        let views: Vec<usize> = (0..scene.cameras.len())
+            .filter(|&k| scene.cameras[k].is_some() && frame.masks[k].is_some())
+            .collect();
+        let cameras: Vec<&Camera> = views
+            .iter()
+            .map(|&k| scene.cameras[k].as_ref().unwrap())
+            .collect();
+        let truth = c.gt_poses(f).unwrap();
+        let poses = ArchPoses {
+            upper: truth
+                .upper
+                .with_euler_offset(&[0.006, -0.003, 0.003, 0.45, -0.3, 0.15]),
+            lower: truth
+                .lower
+                .with_euler_offset(&[-0.009, 0.0, 0.006, -0.3, 0.45, 0.0]),
+        };
+        let arches = [(c.upper(), &edges[0]), (c.lower(), &edges[1])];
+        let samples = smooth::samples(arches, &poses, &cameras, apart, 2.0);
+        let q = EdgeQuery {
+            samples: &samples,
+            cameras: &views,
+            moved: [
+                Vector6::new(0.001, 0.0, -0.001, 0.05, 0.0, -0.05),
+                Vector6::new(0.0, 0.002, 0.0, 0.0, -0.05, 0.05),
+            ],
+            params: EdgeParams {
+                reach_px: 4.0,
+                smoothing_px: 0.5,
+                weights: Weights {
+                    lambda: 0.4,
+                    cross: 1.0,
+                    mouth: 1.0,
+                },
+            },
+        };
+        let (tc, tg) = (cpu.edge_terms(&q).unwrap(), g.edge_terms(&q).unwrap());
+        assert_eq!(tc.len(), samples.len());
+        assert_eq!(tg.len(), samples.len());
+        for (a, b) in tc.iter().zip(&tg) {
+            compared += 1;
+            match (a, b) {
+                (None, None) => {}
+                (Some(a), Some(b)) => {
+                    let d = (a.offset_px - b.offset_px).abs();
+                    worst_offset = worst_offset.max(d);
+                    let close = |x: f64, y: f64| (x - y).abs() <= 1e-3 * x.abs().max(1.0);
+                    if d > 1e-3 || !close(a.weight, b.weight) || !close(a.energy, b.energy) {
+                        differing += 1;
+                    }
+                }
+                _ => differing += 1,
+            }
+        }
+        let (sc, sg) = (
+            smooth::normal_equations(&samples, &tc),
+            smooth::normal_equations(&samples, &tg),
+        );
+        let h_off = (sc.h - sg.h).norm() / sc.h.norm();
+        let g_off = (sc.g - sg.g).norm() / sc.g.norm();
+        let e_off = (sc.energy - sg.energy).abs() / sc.energy;
+        eprintln!(
+            "{what} frame {f}: {} samples, normal equations h {h_off:.1e}, g {g_off:.1e}, energy {e_off:.1e} apart",
+            samples.len()
+        );
+        assert!(
+            h_off < 1e-2 && g_off < 1e-2 && e_off < 1e-2,
+            "{what} frame {f}"
+        );
+        // The segmentation's noise meets the model's edges at angles, which Gauss-Newton's
+        // linearisation leaves out (src/energy/smooth/tests.rs): the GPU's gradient agrees
+        // with its own central differences as the CPU's does with the CPU's.
+        let cosine = |engine: &dyn EnergyEngine| {
+            let (analytic, differences) = smooth::gradient_and_differences(engine, &q).unwrap();
+            analytic.dot(&differences) / (analytic.norm() * differences.norm())
+        };
+        let (on_gpu, on_cpu) = (cosine(&g), cosine(&cpu));
+        eprintln!(
+            "{what} frame {f}: gradient against central differences: cosine {on_gpu:.4} (GPU), {on_cpu:.4} (CPU)"
+        );
+        assert!(
+            on_gpu > 0.9 && (on_gpu - on_cpu).abs() < 0.01,
+            "{what} frame {f}"
+        );
+    }
+    eprintln!(
+        "{what}: {differing} of {compared} samples' terms differ (f32 against f64), the largest offset difference of the rest {worst_offset:.1e} px"
+    );
+    // An edge read exactly at one half, or a cost read exactly between pixels, can go either
+    // way in f32.
+    assert!(
+        differing * 200 <= compared,
+        "{what}: {differing} of {compared}"
+    );
+}
+
+#[test]
+fn gpu_edge_terms_match_the_cpu_twin() {
+    compare_edge_terms(template(Preset::Realistic, MaskKind::PerArch), "per-arch");
+    compare_edge_terms(template(Preset::Realistic, MaskKind::Combined), "combined");
 }

@@ -11,9 +11,11 @@ use rayon::prelude::*;
 
 use super::backfaces::{self, AwaySign};
 use super::clusters::{self, Cluster};
+use super::edge_terms::label_terms;
 use super::histogram;
 use super::raster::{self, Bounds, CLASS_BODY, CLASS_BOI, Placed, Target};
 use super::relevance::{LabelledTiles, Relevance};
+use super::smooth::{EdgeQuery, EdgeTerm};
 use super::{Counts, Energy, EnergyEngine, MaskTotals, Region, Scene, frame_totals};
 use crate::arch::{Arch, ArchPoses, PerArch};
 use crate::capture::masks::MOUTH_BIT;
@@ -250,6 +252,15 @@ impl EnergyEngine for CpuEnergy {
             rayon::current_num_threads(),
             self.region.name()
         )
+    }
+
+    fn edge_terms(&self, q: &EdgeQuery) -> Result<Vec<Option<EdgeTerm>>> {
+        let masks: Vec<Option<&LabelMask>> = q
+            .cameras
+            .iter()
+            .map(|&k| self.frame.get(k).and_then(|f| f.as_ref()).map(|f| &f.mask))
+            .collect();
+        Ok(label_terms(q.samples, &masks, &q.moved, &q.params))
     }
 
     fn set_frame(&mut self, masks: &FrameMasks) -> Result<()> {

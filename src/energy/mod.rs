@@ -8,6 +8,7 @@ pub mod backfaces;
 pub mod clusters;
 pub mod contour;
 pub mod cpu;
+pub mod edge_terms;
 pub mod gpu;
 #[doc(hidden)]
 pub mod hand_counted;
@@ -15,6 +16,7 @@ pub mod histogram;
 pub mod lens;
 pub mod raster;
 pub mod relevance;
+pub mod smooth;
 pub mod target;
 
 use crate::arch::{Arch, ArchPoses, PerArch};
@@ -309,6 +311,10 @@ pub trait EnergyEngine {
     fn name(&self) -> String;
     fn set_frame(&mut self, masks: &FrameMasks) -> Result<()>;
     fn evaluate(&self, arch: Arch, candidates: &[ArchPoses]) -> Result<Vec<Energy>>;
+    /// The smooth energy's terms at a stage's samples over the frame's masks ([`smooth`]):
+    /// the CPU reference by its twin ([`edge_terms`]), the GPU engine by
+    /// shaders/edge_terms.wgsl. One per sample, in order.
+    fn edge_terms(&self, q: &smooth::EdgeQuery) -> Result<Vec<Option<smooth::EdgeTerm>>>;
 }
 
 #[cfg(test)]

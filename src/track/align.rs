@@ -10,19 +10,16 @@ use nalgebra::{Matrix6, Vector2, Vector6};
 use super::penalties::Penalties;
 use super::search::Found;
 use crate::arch::{Arch, ArchPoses};
-use crate::capture::masks::MOUTH_BIT;
 use crate::capture::{Capture, FrameMasks, LabelMask};
-use crate::energy::contour::{ContourEdges, ContourPoint, bilinear, showing};
+use crate::energy::contour::{ContourEdges, showing};
+use crate::energy::edge_terms::{edge_offset, extra_read, label_read};
 use crate::energy::raster::render_target;
+use crate::energy::smooth::OCCLUSION_MM;
 use crate::energy::target::{CLASS_BODY, CLASS_BOI};
 use crate::energy::{EnergyEngine, Weights};
 use crate::error::Result;
 use crate::geometry::{Camera, Pose};
 use crate::mesh::Mesh;
-
-/// How far (mm) in front of a contour sample its own surface may lie and the sample still count
-/// as seen (see [`visible`]).
-pub(super) const OCCLUSION_MM: f64 = 2.0;
 
 /// One camera and what its mask says at a pixel position (1 on the mesh's label, 0 off it; a
 /// bilinear read of a binary mask, or a soft mask's probability).
@@ -74,39 +71,10 @@ pub struct Aligned {
     pub samples: usize,
 }
 
-/// The offset (pixels, along `c.normal`) to the mask's edge nearest the sample within
-/// `reach`: where the mask falls through one half, from inside (behind the sample) to outside.
-pub(super) fn edge_offset(
-    c: &ContourPoint,
-    mask: &dyn Fn(Vector2<f64>) -> f64,
-    reach: f64,
-) -> Option<f64> {
-    let step = 0.5;
-    let n = (reach / step).ceil() as usize;
-    let at = |d: f64| mask(c.pixel + d * c.normal) - 0.5;
-    // Outward from the sample, both ways at once: the first crossing found is the nearest.
-    let (mut ahead, mut behind) = (at(0.0), at(0.0));
-    for k in 0..n {
-        let (d0, d1) = (k as f64 * step, (k + 1) as f64 * step);
-        let next_ahead = at(d1);
-        let forward =
-            (ahead >= 0.0 && next_ahead < 0.0).then(|| d0 + step * ahead / (ahead - next_ahead));
-        let next_behind = at(-d1);
-        let backward = (next_behind >= 0.0 && behind < 0.0)
-            .then(|| -d1 + step * next_behind / (next_behind - behind));
-        match (forward, backward) {
-            (Some(f), Some(b)) => return Some(if f <= -b { f } else { b }),
-            (Some(d), None) | (None, Some(d)) => return Some(d),
-            (None, None) => {}
-        }
-        (ahead, behind) = (next_ahead, next_behind);
-    }
-    None
-}
-
 /// The cameras that have a mask in a frame, and what their masks say at a pixel position.
 pub struct FrameReads<'a> {
-    cameras: Vec<(Camera, &'a LabelMask)>,
+    /// Each camera with a mask: its index in the capture, its mask camera, its mask.
+    cameras: Vec<(usize, Camera, &'a LabelMask)>,
 }
 
 impl<'a> FrameReads<'a> {
@@ -115,7 +83,8 @@ impl<'a> FrameReads<'a> {
             .cameras()
             .iter()
             .zip(&masks.masks)
-            .filter_map(|(c, m)| Some((c.mask_camera()?, m.as_ref()?)))
+            .enumerate()
+            .filter_map(|(k, (c, m))| Some((k, c.mask_camera()?, m.as_ref()?)))
             .collect();
         FrameReads { cameras }
     }
@@ -129,14 +98,17 @@ impl<'a> FrameReads<'a> {
     }
 
     pub fn camera(&self, k: usize) -> &Camera {
-        &self.cameras[k].0
+        &self.cameras[k].1
+    }
+
+    /// Camera `k`'s index in the capture.
+    pub fn index(&self, k: usize) -> usize {
+        self.cameras[k].0
     }
 
     /// Camera `k`'s mask of `arch`, read bilinearly (1 on its label, 0 off it).
     pub fn on(&self, k: usize, arch: Arch) -> impl Fn(Vector2<f64>) -> f64 + '_ {
-        let m = self.cameras[k].1;
-        let (w, h, bit) = (m.width as usize, m.height as usize, arch.mask_bit());
-        move |x: Vector2<f64>| bilinear(&m.data, w, h, |v| v & bit != 0, x)
+        label_read(self.cameras[k].2, arch)
     }
 
     /// What `arch`'s model drawn past its mask's edge costs at a pixel of camera `k`, against
@@ -176,20 +148,7 @@ impl<'a> FrameReads<'a> {
     /// terms: the cross-label weight over the other arch's label, the over-mouth weight over
     /// the mouth interior's.
     pub fn extra(&self, k: usize, arch: Arch, w: &Weights) -> impl Fn(Vector2<f64>) -> f64 + '_ {
-        let m = self.cameras[k].1;
-        let (width, height) = (m.width as i64, m.height as i64);
-        let (own, other) = (arch.mask_bit(), arch.other().mask_bit());
-        let w = *w;
-        move |x: Vector2<f64>| {
-            let (i, j) = (x.x.round() as i64, x.y.round() as i64);
-            if i < 0 || j < 0 || i >= width || j >= height {
-                return 0.0;
-            }
-            let label = m.data[(j * width + i) as usize];
-            let cross = label & other != 0 && label & own == 0;
-            (if cross { w.cross } else { 0.0 })
-                + (if label & MOUTH_BIT != 0 { w.mouth } else { 0.0 })
-        }
+        extra_read(self.cameras[k].2, arch, w)
     }
 }
 
@@ -328,6 +287,7 @@ pub(crate) mod tests {
     use nalgebra::Vector3;
 
     use super::*;
+    use crate::energy::contour::bilinear;
     use crate::energy::target::CLASS_NONE;
     use crate::geometry::looking_at_origin;
     use crate::geometry::so3_exp;

@@ -2,17 +2,20 @@
 //! and the jaw prior's poses near them for the lower arch), what anatomy adds as residuals
 //! (the tracker's penalties as hinges), and which of result and start stands, by the energy.
 
+use nalgebra::Vector6;
+
 use super::align::FrameReads;
-use super::joint::{JawHinge, JointView, Matrix12, align_both, information_at};
+use super::joint::{JawHinge, Terms, align_both, information_at};
 use super::penalties::Penalties;
 use super::prior::JawPrior;
 use super::search::SearchSettings;
 use crate::arch::{Arch, ArchPoses};
 use crate::capture::{Capture, FrameMasks, MaskMode};
 use crate::energy::contour::ContourEdges;
+use crate::energy::smooth::{EdgeParams, EdgeQuery, EdgeSample, Matrix12};
 use crate::energy::{Energy, EnergyEngine};
 use crate::error::Result;
-use crate::geometry::Pose;
+use crate::geometry::{Camera, Pose};
 use crate::mesh::Mesh;
 
 /// What stays the same over a run.
@@ -51,35 +54,42 @@ impl JointFrame<'_> {
         matches!(self.capture.mask_mode(), MaskMode::PerArch { .. })
     }
 
-    /// `f` given what every camera's masks say (each arch's label, and the extra cost of a
-    /// model drawn over another's label or the mouth).
-    fn with_views<T>(&self, masks: &FrameMasks, f: impl FnOnce(&[JointView]) -> T) -> T {
-        let weights = self.search.weights();
+    /// `f` given the cameras that have masks this frame and the engine's edge terms over
+    /// them.
+    fn with_views<T>(
+        &self,
+        engine: &dyn EnergyEngine,
+        masks: &FrameMasks,
+        f: impl FnOnce((&[&Camera], Terms)) -> T,
+    ) -> T {
         let reads = FrameReads::new(self.capture, masks);
-        let on: Vec<_> = (0..reads.len())
-            .map(|c| Arch::BOTH.map(|a| reads.on(c, a)))
-            .collect();
-        let extra: Vec<_> = (0..reads.len())
-            .map(|c| Arch::BOTH.map(|a| reads.extra(c, a, &weights)))
-            .collect();
-        let views: Vec<JointView> = (0..reads.len())
-            .map(|c| JointView {
-                camera: reads.camera(c),
-                masks: [&on[c][0], &on[c][1]],
-                extra: [Some(&extra[c][0]), Some(&extra[c][1])],
+        let cameras: Vec<&Camera> = (0..reads.len()).map(|k| reads.camera(k)).collect();
+        let indices: Vec<usize> = (0..reads.len()).map(|k| reads.index(k)).collect();
+        let terms = |samples: &[EdgeSample], moved: &[Vector6<f64>; 2], params: &EdgeParams| {
+            engine.edge_terms(&EdgeQuery {
+                samples,
+                cameras: &indices,
+                moved: *moved,
+                params: *params,
             })
-            .collect();
-        f(&views)
+        };
+        f((&cameras, &terms))
     }
 
     /// The information the masks give about `poses`: for a frame another search found, so
     /// that the window over frames weighs it too.
-    pub fn information(&self, masks: &FrameMasks, poses: &ArchPoses) -> Matrix12 {
-        let (lambda, gn) = (self.search.lambda, &self.search.gauss_newton);
-        self.with_views(masks, |views| {
-            information_at(self.arches(), poses, views, self.apart(), lambda, gn)
+    pub fn information(
+        &self,
+        engine: &dyn EnergyEngine,
+        masks: &FrameMasks,
+        poses: &ArchPoses,
+    ) -> Result<Matrix12> {
+        let (weights, gn) = (self.search.weights(), &self.search.gauss_newton);
+        self.with_views(engine, masks, |views| {
+            information_at(self.arches(), poses, views, self.apart(), &weights, gn)
         })
     }
+
     /// Each candidate scored on both arches: the objective of each plus the penalties, and
     /// the energies (upper, lower).
     fn score_both(
@@ -165,17 +175,17 @@ impl JointFrame<'_> {
                 stiffness: gn.manifold_stiffness,
             });
         }
-        let found = self.with_views(masks, |views| {
+        let found = self.with_views(engine, masks, |views| {
             align_both(
                 self.arches(),
                 start,
                 views,
                 self.apart(),
                 &hinges,
-                weights.lambda,
+                &weights,
                 gn,
             )
-        });
+        })?;
         let (found, steps, information) = (found.poses, found.steps, found.information);
         // The result, each arch's result with the other's start, and the start: where the
         // steps made an arch worse (too few samples to hold it, an edge that is another's),

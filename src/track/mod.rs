@@ -28,7 +28,7 @@ pub mod settings;
 pub mod state;
 pub mod window;
 
-pub use search::{ArchSearch, Found, SearchSettings, Solver, search};
+pub use search::{ArchSearch, Found, GaussNewtonSettings, SearchSettings, Solver, search};
 pub use sequence::{FrameResult, MaskSource, Status, track_frames};
 pub use session::{Session, SessionOptions, Summary, score_records};
 pub use settings::{JawSpace, LabelledSettings, TrackSettings};

@@ -13,10 +13,10 @@ use std::io::Write;
 use std::path::{Path, PathBuf};
 use std::time::{Duration, Instant};
 
-use super::joint::Matrix12;
 use super::sequence::FrameResult;
 use super::window::{Estimate, WindowSettings, settled};
 use crate::arch::ArchPoses;
+use crate::energy::smooth::Matrix12;
 use crate::error::{Error, Result};
 use crate::formats::{
     ArchEnergyJson, FrameRecordJson, PerArchJson, PoseJson, Status, TRACKS_FORMAT, TrackedJson,

@@ -10,7 +10,6 @@ use nalgebra::Vector3;
 
 use super::align::{ArchAlign, align_arch};
 use super::contact::{Contact, ContactSettings};
-use super::joint::Matrix12;
 use super::joint_frame::JointFrame;
 use super::locate::relocate;
 use super::manifold::JawManifold;
@@ -22,6 +21,7 @@ use super::state::{TrackState, as_written};
 use crate::arch::{Arch, ArchPoses};
 use crate::capture::{Capture, FrameMasks, MaskMode};
 use crate::energy::contour::ContourEdges;
+use crate::energy::smooth::Matrix12;
 use crate::energy::{Energy, EnergyEngine};
 use crate::error::Result;
 pub use crate::formats::Status;
@@ -410,8 +410,10 @@ fn track_frame(
         &mut evaluations,
     )?;
     // What the masks say about the poses found, for the window over frames.
-    let information =
-        (settings.window.frames > 0).then(|| run.joint_frame().information(masks, &poses));
+    let information = match settings.window.frames > 0 {
+        true => Some(run.joint_frame().information(engine, masks, &poses)?),
+        false => None,
+    };
     let result = finish(settings, state, frame, poses, energies, evaluations);
     Ok(FrameResult {
         steps,

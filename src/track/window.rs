@@ -16,9 +16,9 @@
 
 use nalgebra::{DMatrix, DVector, Matrix6, Vector6};
 
-use super::joint::Matrix12;
 use super::search::RADIUS_MM;
 use crate::arch::ArchPoses;
+use crate::energy::smooth::Matrix12;
 use crate::geometry::Pose;
 
 /// The window's settings (`window` in the settings).

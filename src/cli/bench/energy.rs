@@ -1,4 +1,5 @@
-//! `jawtrack bench energy`: evaluations per second of every energy backend; one synthetic
+//! `jawtrack bench energy`: evaluations per second of every energy backend, and how fast each
+//! engine computes the smooth energy's edge terms (a Gauss-Newton step's); one synthetic
 //! capture per mesh case, three cameras, half-resolution masks.
 
 use std::path::{Path, PathBuf};
@@ -6,10 +7,15 @@ use std::time::{Duration, Instant};
 
 use anyhow::Context;
 use jawtrack::arch::{Arch, ArchPoses};
-use jawtrack::capture::{Capture, FrameMasks, OpenOptions};
+use jawtrack::capture::{Capture, FrameMasks, MaskMode, OpenOptions};
+use jawtrack::energy::contour::ContourEdges;
 use jawtrack::energy::gpu::GpuEnergy;
-use jawtrack::energy::{CpuEnergy, EnergyEngine, Region, Scene};
+use jawtrack::energy::smooth::{self, EdgeParams, EdgeQuery};
+use jawtrack::energy::{CpuEnergy, EnergyEngine, Region, Scene, Weights};
+use jawtrack::geometry::Camera;
 use jawtrack::synth::{Preset, SynthOptions, generate};
+use jawtrack::track::GaussNewtonSettings;
+use nalgebra::Vector6;
 
 #[derive(clap::Args)]
 pub struct EnergyArgs {
@@ -44,11 +50,23 @@ struct Row {
     evaluations_per_second: f64,
 }
 
+/// The smooth energy's edge terms of both arches at one pose, as a Gauss-Newton step asks
+/// for them.
+#[derive(serde::Serialize)]
+struct EdgeRow {
+    mesh: String,
+    backend: String,
+    samples: usize,
+    ms_per_query: f64,
+    samples_per_second: f64,
+}
+
 #[derive(serde::Serialize)]
 struct Report {
     machine: String,
     adapter: Option<String>,
     rows: Vec<Row>,
+    edge_terms: Vec<EdgeRow>,
 }
 
 /// Candidates around the truth: small moves of the lower arch, as a search makes them.
@@ -93,6 +111,7 @@ pub fn energy(a: EnergyArgs) -> anyhow::Result<()> {
         machine: format!("{} CPU threads", rayon::current_num_threads()),
         adapter: None,
         rows: Vec::new(),
+        edge_terms: Vec::new(),
     };
     for case in cases {
         measure_case(&a, tmp.path(), case, &mut report)?;
@@ -177,6 +196,77 @@ fn measure_case(
                 evaluations_per_second: 1.0 / s,
             });
         }
+    }
+    time_edge_terms(a, &capture, &name, &engines, &truth, report)
+}
+
+/// Times each engine's edge terms (once per backend) at the samples of both arches drawn
+/// near the truth, with Gauss-Newton's default spacing and its finest reach.
+fn time_edge_terms(
+    a: &EnergyArgs,
+    capture: &Capture,
+    name: &str,
+    engines: &[Engine],
+    truth: &ArchPoses,
+    report: &mut Report,
+) -> anyhow::Result<()> {
+    let gn = GaussNewtonSettings::default();
+    let edges = [
+        ContourEdges::of(capture.upper()),
+        ContourEdges::of(capture.lower()),
+    ];
+    let (indices, cameras): (Vec<usize>, Vec<Camera>) = capture
+        .cameras()
+        .iter()
+        .enumerate()
+        .filter_map(|(k, c)| Some((k, c.mask_camera()?)))
+        .unzip();
+    let views: Vec<&Camera> = cameras.iter().collect();
+    let poses = candidates(truth, 2)[0];
+    let arches = [(capture.upper(), &edges[0]), (capture.lower(), &edges[1])];
+    let apart = matches!(capture.mask_mode(), MaskMode::PerArch { .. });
+    let samples = smooth::samples(arches, &poses, &views, apart, gn.spacing_px);
+    let q = EdgeQuery {
+        samples: &samples,
+        cameras: &indices,
+        moved: [Vector6::zeros(); 2],
+        params: EdgeParams {
+            reach_px: gn.reaches_px.last().copied().unwrap_or(1.0),
+            smoothing_px: gn.smoothing_px,
+            weights: Weights {
+                lambda: 0.4,
+                cross: 1.0,
+                mouth: 1.0,
+            },
+        },
+    };
+    let mut timed: Vec<&str> = Vec::new();
+    for (label, _, engine) in engines {
+        if label == "readback" || timed.contains(&label.as_str()) {
+            continue;
+        }
+        timed.push(label);
+        engine.edge_terms(&q)?; // warm-up
+        let budget = Duration::from_secs_f64(a.seconds);
+        let started = Instant::now();
+        let mut runs = 0;
+        while runs < 2 || started.elapsed() < budget {
+            engine.edge_terms(&q)?;
+            runs += 1;
+        }
+        let s = started.elapsed().as_secs_f64() / runs as f64;
+        eprintln!(
+            "{name}: {label} edge terms, {} samples: {:.3} ms",
+            samples.len(),
+            s * 1e3
+        );
+        report.edge_terms.push(EdgeRow {
+            mesh: name.to_string(),
+            backend: label.clone(),
+            samples: samples.len(),
+            ms_per_query: s * 1e3,
+            samples_per_second: samples.len() as f64 / s,
+        });
     }
     Ok(())
 }
@@ -288,6 +378,17 @@ fn print_table(report: &Report) {
             r.batch,
             r.ms_per_evaluation,
             r.evaluations_per_second
+        );
+    }
+    println!("\nthe smooth energy's edge terms of both arches (a Gauss-Newton step's)");
+    println!(
+        "{:<34} {:<9} {:>8} {:>10} {:>12}",
+        "mesh", "backend", "samples", "ms/query", "samples/s"
+    );
+    for r in &report.edge_terms {
+        println!(
+            "{:<34} {:<9} {:>8} {:>10.3} {:>12.0}",
+            r.mesh, r.backend, r.samples, r.ms_per_query, r.samples_per_second
         );
     }
 }

@@ -10,6 +10,7 @@ mod adapter;
 mod atlas;
 mod batch;
 mod draw;
+mod edge_terms;
 mod histogram;
 mod mesh;
 mod pipelines;
@@ -22,12 +23,14 @@ pub use adapter::{ADAPTER_ENV, GpuContext};
 
 use atlas::{MAX_TILES_PER_PAGE, PAGE};
 use batch::Batch;
+use edge_terms::EdgeStage;
 use mesh::GpuMesh;
 use pipelines::{CLASS_FORMAT, DEPTH_FORMAT, Pipelines};
 use readback::ReadbackTarget;
 
 use super::lens::Lens;
 use super::raster::{self, Rect};
+use super::smooth::{EdgeQuery, EdgeTerm};
 use super::{
     BINS, Counts, Energy, EnergyEngine, MaskTotals, Region, Scene, counts_with_outside,
     frame_totals,
@@ -62,7 +65,11 @@ pub struct GpuEnergy {
     /// Per camera: the frame's mask totals per scored arch (upper, lower; see
     /// `mask_totals`), or `None` without a mask.
     frame: Vec<Option<PerArch<MaskTotals>>>,
+    /// Per camera: the frame's mask size, or `None` without a mask.
+    mask_sizes: Vec<Option<(u32, u32)>>,
     batch: Mutex<Option<Batch>>,
+    /// The smooth energy's edge terms (shaders/edge_terms.wgsl).
+    edges: EdgeStage,
 }
 
 impl GpuEnergy {
@@ -153,6 +160,8 @@ impl GpuEnergy {
         Ok(GpuEnergy {
             readback,
             frame: vec![None; scene.cameras.len()],
+            mask_sizes: vec![None; scene.cameras.len()],
+            edges: EdgeStage::new(device),
             class_view: class.create_view(&Default::default()),
             depth_view: depth.create_view(&Default::default()),
             masks,
@@ -296,6 +305,7 @@ impl EnergyEngine for GpuEnergy {
     fn set_frame(&mut self, masks: &FrameMasks) -> Result<()> {
         for (layer, m) in masks.masks.iter().enumerate() {
             self.frame[layer] = m.as_ref().map(frame_totals);
+            self.mask_sizes[layer] = m.as_ref().map(|m| (m.width, m.height));
             let Some(m) = m else { continue };
             self.ctx.queue.write_texture(
                 wgpu::TexelCopyTextureInfo {
@@ -326,5 +336,9 @@ impl EnergyEngine for GpuEnergy {
 
     fn evaluate(&self, arch: Arch, candidates: &[ArchPoses]) -> Result<Vec<Energy>> {
         Ok(self.run_batch(arch, candidates)?)
+    }
+
+    fn edge_terms(&self, q: &EdgeQuery) -> Result<Vec<Option<EdgeTerm>>> {
+        Ok(self.run_edge_terms(q)?)
     }
 }
