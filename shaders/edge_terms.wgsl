@@ -14,7 +14,7 @@ struct Sample {
     // 0: upper, 1: lower.
     arch: u32,
     // Bits: 1, a silhouette (else the BOI's edge where it meets the body); 2, the BOI just
-    // inside it; 4, drawn over the other arch's model; 8, the other's BOI just beyond.
+    // inside it.
     kind: u32,
 }
 
@@ -169,30 +169,17 @@ fn edge_terms(@builtin(global_invocation_id) id: vec3<u32>) {
         return;
     }
     let d = found.d;
-    // `cost`: what each pixel between the sample and its mask's edge costs.
+    // `cost`: past a silhouette, the model's pixels outside the mask; short of it, the mask's
+    // pixels it leaves uncovered; past the BOI's edge, BOI outside the mask.
     let silhouette = (s.kind & 1u) != 0u;
     let boi = select(0.0, params.lambda, (s.kind & 2u) != 0u);
-    let over_other = (s.kind & 4u) != 0u;
-    let other_boi = select(0.0, params.lambda, (s.kind & 8u) != 0u);
-    let at = moved + 0.5 * d * s.normal;
     var cost = 0.0;
     if !silhouette {
         cost = select(0.0, params.lambda, d < 0.0);
     } else if d < 0.0 {
-        var hidden = 0.0;
-        if over_other {
-            if on(view, other, at) >= 0.5 {
-                hidden = 1.0;
-            } else {
-                hidden = -(extra(view, other, own, at) + other_boi);
-            }
-        }
-        cost = max(extra(view, own, other, at) + boi + hidden, 0.0);
+        cost = extra(view, own, other, moved + 0.5 * d * s.normal) + boi;
     } else {
         cost = 1.0;
-        if over_other {
-            cost += extra(view, other, own, at) + other_boi;
-        }
     }
     if cost == 0.0 {
         return;

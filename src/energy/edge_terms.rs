@@ -12,10 +12,61 @@ use rayon::prelude::*;
 
 use super::Weights;
 use super::contour::{ContourPoint, bilinear};
-use super::smooth::{EdgeKind, EdgeParams, EdgeSample, EdgeTerm, Over};
 use crate::arch::Arch;
 use crate::capture::LabelMask;
 use crate::capture::masks::MOUTH_BIT;
+
+/// What a sample is an edge of.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub enum EdgeKind {
+    /// The silhouette, the model's BOI just inside it (else its body).
+    Silhouette { boi: bool },
+    /// The BOI's edge where it meets the rest of the model.
+    Region,
+}
+
+/// A sample of an arch's drawn edge, frozen where its stage drew it.
+#[derive(Debug, Clone, Copy)]
+pub struct EdgeSample {
+    /// 0: the upper arch, 1: the lower.
+    pub arch: usize,
+    /// The view (of the query's cameras) it was drawn in.
+    pub view: usize,
+    pub point: ContourPoint,
+    pub kind: EdgeKind,
+}
+
+/// How the terms are read.
+#[derive(Debug, Clone, Copy)]
+pub struct EdgeParams {
+    /// How far (pixels) along its normal a sample looks for its mask's edge.
+    pub reach_px: f64,
+    /// The smoothing width ε (pixels).
+    pub smoothing_px: f64,
+    /// λ, and the cross-label and over-mouth weights of the pixels past a silhouette.
+    pub weights: Weights,
+}
+
+/// A sample's term.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct EdgeTerm {
+    /// The offset (pixels, along the normal) to the mask's edge.
+    pub offset_px: f64,
+    /// Its weight in the least squares (cost·tukey·length/max(|d|, ε)).
+    pub weight: f64,
+    /// Its share of the smooth energy (cost·length·ρ(d)).
+    pub energy: f64,
+}
+
+/// A stage's edge terms asked of an engine, over the frame's masks.
+pub struct EdgeQuery<'a> {
+    pub samples: &'a [EdgeSample],
+    /// The camera (its index in the scene) of each view the samples name.
+    pub cameras: &'a [usize],
+    /// Each arch's world increment since the samples were drawn (upper, lower).
+    pub moved: [Vector6<f64>; 2],
+    pub params: EdgeParams,
+}
 
 /// A pixel-position read of a mask or of a cost.
 pub type Read<'a> = &'a (dyn Fn(Vector2<f64>) -> f64 + Sync);
@@ -60,45 +111,20 @@ pub fn edge_offset(
     None
 }
 
-/// What the masks say at the pixels between a sample and its mask's edge.
-pub struct Between {
-    /// The sample's arch's extra weight there ([`EdgeReads::extra`]).
-    pub own_extra: f64,
-    /// The other arch's.
-    pub other_extra: f64,
-    /// Whether the other arch's label is there.
-    pub other_label: bool,
-}
-
-/// What each pixel between a sample and its mask's edge costs, `d` pixels away (read by
-/// `between` where needed), as the pixel-count energy counts it:
-/// - past a silhouette (d < 0), the model's pixels outside its mask: λ where its BOI shows,
-///   plus its extra weight there; drawn over the other arch's model, the other's label
-///   hidden from it (1, uncovered) or, off that label, the other's cost there no longer
-///   counted;
-/// - short of a silhouette, the mask's pixels it leaves uncovered (1), and the other arch's
-///   model where it shows over them (λ for its BOI, plus its extra weight);
-/// - past a BOI edge, BOI outside the mask (λ); short of it, nothing (both sides cover the
-///   mask).
+/// What each pixel between a sample and its mask's edge costs, `d` pixels away: past a
+/// silhouette (d < 0), the model's pixels outside the mask (λ where the BOI shows there, plus
+/// the extra weight `extra` of what the mask labels there); short of it, the mask's pixels it
+/// leaves uncovered (1); past a BOI edge, BOI outside the mask (λ); short of it, nothing (both
+/// sides cover the mask).
 ///
-/// Never below zero: where hiding the other arch's model would lower the count, the sample
-/// is left out (a least-squares weight cannot be negative).
-pub fn cost(kind: EdgeKind, d: f64, lambda: f64, between: impl FnOnce() -> Between) -> f64 {
-    let boi_cost = |boi: bool| if boi { lambda } else { 0.0 };
+/// Only the sample's own arch's pixels: where its silhouette is drawn over the other arch's
+/// model (per-arch masks), moving it also hides the other's label from its model or reveals
+/// that model, which the pixel count charges to the other arch and this leaves out
+/// (docs/energy.md: counted, it made tracking on hard footage worse).
+pub fn cost(kind: EdgeKind, d: f64, lambda: f64, extra: impl FnOnce() -> f64) -> f64 {
     match (kind, d < 0.0) {
-        (EdgeKind::Silhouette { boi, over }, true) => {
-            let b = between();
-            let hidden = match over {
-                Over::Nothing => 0.0,
-                Over::Other { .. } if b.other_label => 1.0,
-                Over::Other { boi } => -(b.other_extra + boi_cost(boi)),
-            };
-            (b.own_extra + boi_cost(boi) + hidden).max(0.0)
-        }
-        (EdgeKind::Silhouette { over, .. }, false) => match over {
-            Over::Nothing => 1.0,
-            Over::Other { boi } => 1.0 + between().other_extra + boi_cost(boi),
-        },
+        (EdgeKind::Silhouette { boi }, true) => extra() + if boi { lambda } else { 0.0 },
+        (EdgeKind::Silhouette { .. }, false) => 1.0,
         (EdgeKind::Region, true) => lambda,
         (EdgeKind::Region, false) => 0.0,
     }
@@ -138,16 +164,11 @@ pub fn term(
         ..s.point
     };
     let d = edge_offset(&here, reads.masks[s.arch], p.reach_px)?;
-    let between = || {
+    let extra = || {
         let at = here.pixel + 0.5 * d * here.normal;
-        let other = 1 - s.arch;
-        Between {
-            own_extra: reads.extra[s.arch].map_or(0.0, |e| e(at)),
-            other_extra: reads.extra[other].map_or(0.0, |e| e(at)),
-            other_label: (reads.masks[other])(at) >= 0.5,
-        }
+        reads.extra[s.arch].map_or(0.0, |e| e(at))
     };
-    let cost = cost(s.kind, d, p.weights.lambda, between);
+    let cost = cost(s.kind, d, p.weights.lambda, extra);
     if cost == 0.0 {
         return None;
     }

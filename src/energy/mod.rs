@@ -314,7 +314,7 @@ pub trait EnergyEngine {
     /// The smooth energy's terms at a stage's samples over the frame's masks ([`smooth`]):
     /// the CPU reference by its twin ([`edge_terms`]), the GPU engine by
     /// shaders/edge_terms.wgsl. One per sample, in order.
-    fn edge_terms(&self, q: &smooth::EdgeQuery) -> Result<Vec<Option<smooth::EdgeTerm>>>;
+    fn edge_terms(&self, q: &edge_terms::EdgeQuery) -> Result<Vec<Option<edge_terms::EdgeTerm>>>;
 }
 
 #[cfg(test)]

@@ -13,8 +13,10 @@
 //! sample's term (its offset, weight and share of the energy) is computed by the engine, on
 //! the CPU by [`super::edge_terms`] and on the GPU by shaders/edge_terms.wgsl
 //! ([`super::EnergyEngine::edge_terms`]); [`normal_equations`] sums them. The smooth energy is
-//! Σ c·length·ρ_ε(d), ρ_ε Huber's loss of width ε (`smoothing_px`): as ε → 0 it is the
-//! integral itself, the pixel-count energy's change from where mask and model agree.
+//! Σ c·length·ρ(d), ρ Huber's loss within the smoothing width ε and Tukey's biweight out to
+//! the reach ([`super::edge_terms::loss`]): as ε → 0 it is the integral itself, the
+//! pixel-count energy's change from where mask and model agree, less what the count charges to
+//! the other arch where a silhouette is drawn over it ([`super::edge_terms::cost`]).
 //!
 //! A sample's offset is measured from the model's *drawn* edge, not its exact silhouette: a
 //! segmentation rounds the true edge to pixel centres as the rasteriser does, so the two agree
@@ -25,14 +27,14 @@
 //! `U ← exp(ξ_u)·U` and the lower with it and then by the jaw's own, `L ← exp(ξ_u)·exp(ξ_j)·L`,
 //! so a lower-arch sample's row is `[r, r]` for its single-arch row `r = Jᵀn`.
 
-use nalgebra::{SMatrix, SVector, Vector2, Vector6};
+use nalgebra::{SMatrix, SVector, Vector2};
 use rayon::prelude::*;
 
+use super::EnergyEngine;
 use super::contour::{ContourEdges, ContourPoint, bilinear};
-use super::edge_terms::edge_offset;
+use super::edge_terms::{EdgeKind, EdgeQuery, EdgeSample, EdgeTerm, edge_offset};
 use super::raster::render_target_fitted;
 use super::target::{CLASS_BODY, CLASS_BOI, Target};
-use super::{EnergyEngine, Weights};
 use crate::arch::ArchPoses;
 use crate::error::Result;
 use crate::geometry::{Camera, Pose};
@@ -44,70 +46,6 @@ pub type Vector12 = SVector<f64, 12>;
 /// How far (mm) in front of a contour sample its own surface may lie and the sample still
 /// count as seen.
 pub const OCCLUSION_MM: f64 = 2.0;
-
-/// What a sample is an edge of.
-#[derive(Debug, Clone, Copy, PartialEq, Eq)]
-pub enum EdgeKind {
-    /// The silhouette, the model's BOI just inside it (else its body), drawn over what lies
-    /// just beyond it.
-    Silhouette { boi: bool, over: Over },
-    /// The BOI's edge where it meets the rest of the model.
-    Region,
-}
-
-/// What a silhouette is drawn over: where it is the other arch's model (per-arch masks), the
-/// edge moves the other arch's pixels too, hiding its label or revealing its model.
-#[derive(Debug, Clone, Copy, PartialEq, Eq)]
-pub enum Over {
-    Nothing,
-    /// The other arch's model, its BOI just beyond (else its body).
-    Other {
-        boi: bool,
-    },
-}
-
-/// A sample of an arch's drawn edge, frozen where its stage drew it.
-#[derive(Debug, Clone, Copy)]
-pub struct EdgeSample {
-    /// 0: the upper arch, 1: the lower.
-    pub arch: usize,
-    /// The view (of the query's cameras) it was drawn in.
-    pub view: usize,
-    pub point: ContourPoint,
-    pub kind: EdgeKind,
-}
-
-/// How the terms are read.
-#[derive(Debug, Clone, Copy)]
-pub struct EdgeParams {
-    /// How far (pixels) along its normal a sample looks for its mask's edge.
-    pub reach_px: f64,
-    /// The smoothing width ε (pixels).
-    pub smoothing_px: f64,
-    /// λ, and the cross-label and over-mouth weights of the pixels past a silhouette.
-    pub weights: Weights,
-}
-
-/// A sample's term.
-#[derive(Debug, Clone, Copy, PartialEq)]
-pub struct EdgeTerm {
-    /// The offset (pixels, along the normal) to the mask's edge.
-    pub offset_px: f64,
-    /// Its weight in the least squares (cost·tukey·length/max(|d|, ε)).
-    pub weight: f64,
-    /// Its share of the smooth energy (cost·length·ρ_ε(d)).
-    pub energy: f64,
-}
-
-/// A stage's edge terms asked of an engine, over the frame's masks.
-pub struct EdgeQuery<'a> {
-    pub samples: &'a [EdgeSample],
-    /// The camera (its index in the scene) of each view the samples name.
-    pub cameras: &'a [usize],
-    /// Each arch's world increment since the samples were drawn (upper, lower).
-    pub moved: [Vector6<f64>; 2],
-    pub params: EdgeParams,
-}
 
 /// The render classes of the two arches (body, BOI): apart where the masks tell the arches
 /// apart, so that an arch's silhouette over the other arch is an edge the masks show; the
@@ -123,14 +61,13 @@ fn classes(apart: bool) -> [[u8; 2]; 2] {
 /// What the picture `target` shows of sample `c` (an edge of a model drawn with classes
 /// `own`, body and BOI): `Some` where the pixel just inside it holds one of the `inside`
 /// classes at about the sample's depth (not hidden by the model's own surface more than
-/// `OCCLUSION_MM` in front) and the pixel just outside one of `outside`; the classes inside
-/// and outside.
+/// `OCCLUSION_MM` in front) and the pixel just outside one of `outside`; the class inside.
 fn shown(
     c: &ContourPoint,
     target: &Target,
     inside: &[u8],
     outside: &dyn Fn(u8) -> bool,
-) -> Option<(u8, u8)> {
+) -> Option<u8> {
     let rect = target.rect?;
     let index = |p: Vector2<f64>| {
         let (x, y) = (p.x.round() - rect.x0 as f64, p.y.round() - rect.y0 as f64);
@@ -147,7 +84,7 @@ fn shown(
         return None;
     }
     let beyond = index(c.pixel + 0.75 * c.normal).map_or(0, |j| target.class[j]);
-    outside(beyond).then_some((class, beyond))
+    outside(beyond).then_some(class)
 }
 
 /// 1 where `target` holds one of the classes `inside`, bilinear between pixel centres.
@@ -217,19 +154,11 @@ pub fn samples(
                     kind,
                 })
             };
-            let other = classes[1 - a];
             for point in contour {
-                if let Some((inside, beyond)) = shown(&point, &target, &own, &|b| !own.contains(&b))
-                {
+                if let Some(class) = shown(&point, &target, &own, &|b| !own.contains(&b)) {
                     let point = rendered(&own, &point);
-                    let over = match apart && other.contains(&beyond) {
-                        true => Over::Other {
-                            boi: beyond == other[1],
-                        },
-                        false => Over::Nothing,
-                    };
-                    let boi = inside == own[1];
-                    push(point, EdgeKind::Silhouette { boi, over });
+                    let boi = class == own[1];
+                    push(point, EdgeKind::Silhouette { boi });
                 }
             }
             for point in region {
@@ -363,4 +292,4 @@ pub fn gradient_and_differences(
 }
 
 #[cfg(test)]
-mod tests;
+pub(crate) mod tests;

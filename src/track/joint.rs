@@ -26,9 +26,8 @@ use super::search::RADIUS_MM;
 use crate::arch::ArchPoses;
 use crate::energy::Weights;
 use crate::energy::contour::ContourEdges;
-use crate::energy::smooth::{
-    EdgeParams, EdgeSample, EdgeTerm, Matrix12, Vector12, normal_equations, samples,
-};
+use crate::energy::edge_terms::{EdgeParams, EdgeSample, EdgeTerm};
+use crate::energy::smooth::{Matrix12, Vector12, normal_equations, samples};
 use crate::error::Result;
 use crate::geometry::{Camera, Pose, hat};
 use crate::mesh::Mesh;
@@ -246,44 +245,23 @@ pub fn information_at(
 
 #[cfg(test)]
 mod tests {
-    use nalgebra::Vector3;
-
-    use super::*;
-    use crate::anatomy::{procedural_arch, rest_bite};
-    use crate::energy::contour::bilinear;
-    use crate::energy::edge_terms::{EdgeReads, terms};
-    use crate::energy::raster::render_target;
-    use crate::geometry::looking_at_origin;
     use nalgebra::Vector2;
 
-    /// Both procedural arches at a bite opened by `open` (rad about the lateral axis), seen by
-    /// three cameras 200 mm in front with per-arch teeth masks drawn at the truth, aligned
-    /// from the truth moved by `offset` (upper) and `jaw_offset` (the jaw): each arch's
-    /// error (degrees, mm) after.
+    use super::*;
+    use crate::energy::contour::bilinear;
+    use crate::energy::edge_terms::{EdgeReads, terms};
+    use crate::energy::smooth::tests::{TwoArches, two_arches};
+
+    /// [`two_arches`] opened by `open` (rad), aligned from the truth moved by `offset`
+    /// (upper) and `jaw_offset` (the jaw): each arch's error (degrees, mm) after.
     fn aligned(open: f64, offset: Vector6<f64>, jaw_offset: Vector6<f64>) -> [[f64; 2]; 2] {
-        let (upper, lower) = (procedural_arch(true), procedural_arch(false));
-        let bite = rest_bite(&upper, &lower);
-        let truth_upper = Pose::from_translation(Vector3::new(0.0, 0.0, -10.0));
-        let open = Pose::from_euler_tuple(&[open, 0.0, 0.0, 0.0, 0.0, 0.0]);
-        let truth = ArchPoses {
-            upper: truth_upper,
-            lower: truth_upper.compose(&bite).compose(&open),
-        };
-        let cameras = [
-            looking_at_origin(Vector3::new(0.0, 0.0, 200.0)),
-            looking_at_origin(Vector3::new(90.0, 10.0, 180.0)),
-            looking_at_origin(Vector3::new(-90.0, 10.0, 180.0)),
-        ];
-        let masks: Vec<Vec<u8>> = cameras
-            .iter()
-            .map(|c| {
-                render_target(
-                    c,
-                    &[(&upper, &truth.upper, 1, 1), (&lower, &truth.lower, 2, 2)],
-                )
-                .class
-            })
-            .collect();
+        let TwoArches {
+            upper,
+            lower,
+            truth,
+            cameras,
+            masks,
+        } = two_arches(open);
         type MaskRead<'a> = Box<dyn Fn(Vector2<f64>) -> f64 + Sync + 'a>;
         let reads: Vec<[MaskRead; 2]> = masks
             .iter()

@@ -10,7 +10,7 @@ use bytemuck::{Pod, Zeroable};
 use super::GpuEnergy;
 use crate::arch::{LOWER_BIT, UPPER_BIT};
 use crate::capture::masks::MOUTH_BIT;
-use crate::energy::smooth::{EdgeKind, EdgeQuery, EdgeTerm, Over};
+use crate::energy::edge_terms::{EdgeKind, EdgeQuery, EdgeTerm};
 use crate::error::GpuError;
 
 /// `Sample` in shaders/edge_terms.wgsl.
@@ -30,14 +30,7 @@ struct SampleRecord {
 fn kind_bits(kind: EdgeKind) -> u32 {
     match kind {
         EdgeKind::Region => 0,
-        EdgeKind::Silhouette { boi, over } => {
-            let over = match over {
-                Over::Nothing => 0,
-                Over::Other { boi: false } => 4,
-                Over::Other { boi: true } => 4 | 8,
-            };
-            1 | (boi as u32) << 1 | over
-        }
+        EdgeKind::Silhouette { boi } => 1 | (boi as u32) << 1,
     }
 }
 

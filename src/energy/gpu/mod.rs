@@ -28,9 +28,9 @@ use mesh::GpuMesh;
 use pipelines::{CLASS_FORMAT, DEPTH_FORMAT, Pipelines};
 use readback::ReadbackTarget;
 
+use super::edge_terms::{EdgeQuery, EdgeTerm};
 use super::lens::Lens;
 use super::raster::{self, Rect};
-use super::smooth::{EdgeQuery, EdgeTerm};
 use super::{
     BINS, Counts, Energy, EnergyEngine, MaskTotals, Region, Scene, counts_with_outside,
     frame_totals,

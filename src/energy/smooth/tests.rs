@@ -4,12 +4,51 @@ use super::*;
 use crate::anatomy::{procedural_arch, rest_bite};
 use crate::arch::Arch;
 use crate::capture::{FrameMasks, LabelMask, MaskMode};
+use crate::energy::edge_terms::EdgeParams;
 use crate::energy::raster::render_target;
-use crate::energy::{CpuEnergy, EnergyEngine, Scene};
+use crate::energy::{CpuEnergy, EnergyEngine, Scene, Weights};
 use crate::geometry::{Pose, looking_at_origin};
 
-/// Both procedural arches with the mouth open, three 640×480 cameras 200 mm in front (4 px a
-/// millimetre there), per-arch masks drawn at the truth: the CPU engine on that frame.
+/// Both procedural arches at a bite opened by `open` (rad about the lateral axis), seen by
+/// three 640×480 cameras 200 mm in front (4 px a millimetre there), with per-arch teeth masks
+/// drawn at the truth (label 1 upper, 2 lower: the classes drawn).
+pub(crate) struct TwoArches {
+    pub upper: Mesh,
+    pub lower: Mesh,
+    pub truth: ArchPoses,
+    pub cameras: [Camera; 3],
+    pub masks: Vec<Vec<u8>>,
+}
+
+pub(crate) fn two_arches(open: f64) -> TwoArches {
+    let (upper, lower) = (procedural_arch(true), procedural_arch(false));
+    let bite = rest_bite(&upper, &lower);
+    let upper_pose = Pose::from_translation(Vector3::new(0.0, 0.0, -10.0));
+    let open = Pose::from_euler_tuple(&[open, 0.0, 0.0, 0.0, 0.0, 0.0]);
+    let truth = ArchPoses {
+        upper: upper_pose,
+        lower: upper_pose.compose(&bite).compose(&open),
+    };
+    let cameras = [
+        looking_at_origin(Vector3::new(0.0, 0.0, 200.0)),
+        looking_at_origin(Vector3::new(90.0, 10.0, 180.0)),
+        looking_at_origin(Vector3::new(-90.0, 10.0, 180.0)),
+    ];
+    let items = [(&upper, &truth.upper, 1, 1), (&lower, &truth.lower, 2, 2)];
+    let masks = cameras
+        .iter()
+        .map(|c| render_target(c, &items).class)
+        .collect();
+    TwoArches {
+        upper,
+        lower,
+        truth,
+        cameras,
+        masks,
+    }
+}
+
+/// [`two_arches`] with the mouth open: the CPU engine on that frame.
 struct Fixture {
     scene: Scene,
     engine: CpuEnergy,
@@ -19,28 +58,21 @@ struct Fixture {
 
 impl Fixture {
     fn new() -> Fixture {
-        let (upper, lower) = (procedural_arch(true), procedural_arch(false));
-        let bite = rest_bite(&upper, &lower);
-        let upper_pose = Pose::from_translation(Vector3::new(0.0, 0.0, -10.0));
-        let open = Pose::from_euler_tuple(&[0.15, 0.0, 0.0, 0.0, 0.0, 0.0]);
-        let truth = ArchPoses {
-            upper: upper_pose,
-            lower: upper_pose.compose(&bite).compose(&open),
-        };
-        let cameras = [
-            looking_at_origin(Vector3::new(0.0, 0.0, 200.0)),
-            looking_at_origin(Vector3::new(90.0, 10.0, 180.0)),
-            looking_at_origin(Vector3::new(-90.0, 10.0, 180.0)),
-        ];
-        // The label bits are the classes drawn: 1 upper, 2 lower.
+        let TwoArches {
+            upper,
+            lower,
+            truth,
+            cameras,
+            masks,
+        } = two_arches(0.15);
         let masks = cameras
             .iter()
-            .map(|c| {
-                let items = [(&upper, &truth.upper, 1, 1), (&lower, &truth.lower, 2, 2)];
+            .zip(masks)
+            .map(|(c, data)| {
                 Some(LabelMask {
                     width: c.width,
                     height: c.height,
-                    data: render_target(c, &items).class,
+                    data,
                 })
             })
             .collect();
@@ -118,25 +150,30 @@ fn moved(truth: &ArchPoses, xi_u: [f64; 6], xi_j: [f64; 6]) -> ArchPoses {
 const REACH_PX: f64 = 3.0;
 
 /// The smooth energy is Σ c·length·ρ(d) along the drawn edges; as ε → 0 it grows to the area
-/// between drawn and segmented edges weighted by what it costs, which is the pixel-count
-/// energy (zero at the truth) within a fifth: an offset read along the normal is not the
-/// exact area where a mask's edge meets the model's at an angle, or where the notches between
-/// teeth give a sample an edge that is another's.
+/// between drawn and segmented edges weighted by what it costs: the pixel-count energy (zero at
+/// the truth) within a sixth, less what the count charges to the other arch where a silhouette
+/// is drawn over it (`edge_terms::cost`). The rest is the offset read along the normal: where a
+/// mask's edge meets the model's at an angle, or the notches between teeth give a sample
+/// another tooth's edge, it is not the exact area between them.
 #[test]
 fn the_smooth_energy_converges_to_the_pixel_count_as_its_width_goes_to_zero() {
     let f = Fixture::new();
     assert_eq!(f.counted(&f.truth), 0.0);
+    // The arches moved 1-2 px four ways; the second moves the upper arch's edge over the
+    // lower arch in every camera, which hides the lower's label from it: the count charges
+    // those pixels to the lower arch, the smooth energy leaves them out.
     let offsets = [
-        ([0.0, 0.0, 0.0, 0.4, 0.0, 0.0], [0.0; 6]),
-        ([0.0, 0.004, 0.0, 0.0, -0.3, 0.2], [0.0; 6]),
-        ([0.0; 6], [-0.006, 0.0, 0.0, 0.0, 0.3, 0.0]),
+        ([0.0, 0.0, 0.0, 0.4, 0.0, 0.0], [0.0; 6], 0.15),
+        ([0.0, 0.004, 0.0, 0.0, -0.3, 0.2], [0.0; 6], 0.4),
+        ([0.0; 6], [-0.006, 0.0, 0.0, 0.0, 0.3, 0.0], 0.15),
         (
             [0.003, 0.0, -0.002, 0.2, 0.2, 0.0],
             [0.0, 0.004, 0.0, -0.2, 0.0, 0.0],
+            0.15,
         ),
     ];
     let mut off = Vec::new();
-    for (xi_u, xi_j) in offsets {
+    for (xi_u, xi_j, _) in offsets {
         let poses = moved(&f.truth, xi_u, xi_j);
         let counted = f.counted(&poses);
         let samples = f.samples(&poses);
@@ -150,7 +187,9 @@ fn the_smooth_energy_converges_to_the_pixel_count_as_its_width_goes_to_zero() {
         off.push((smooth[smooth.len() - 1] - counted) / counted);
     }
     eprintln!("relative differences {off:.3?}");
-    assert!(off.iter().all(|d| d.abs() < 0.2), "{off:?}");
+    for (d, (_, _, bound)) in off.iter().zip(offsets) {
+        assert!(d.abs() < bound, "{off:?}");
+    }
     // At the truth the drawn and segmented edges agree, to the odd pixel.
     let samples = f.samples(&f.truth);
     let at_truth = f
