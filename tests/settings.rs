@@ -232,6 +232,26 @@ fn every_tracking_rule_names_its_field_and_range() {
                 "jaw_manifold_tolerance_mm",
                 "from 0 to 100",
             ),
+            (
+                r#"{"window":{"frames":101}}"#,
+                "window.frames",
+                "from 0 to 100",
+            ),
+            (
+                r#"{"window":{"head_acceleration":-1}}"#,
+                "window.head_acceleration",
+                "from 0 to 1000000000000",
+            ),
+            (
+                r#"{"window":{"jaw_acceleration":-1}}"#,
+                "window.jaw_acceleration",
+                "from 0 to 1000000000000",
+            ),
+            (
+                r#"{"window":{"acceleration_scale_mm":1001}}"#,
+                "window.acceleration_scale_mm",
+                "from 0 to 1000",
+            ),
         ],
         track_error,
     );

@@ -11,6 +11,7 @@ use super::output::{SettledFrames, as_tracked, check_records, journal_path};
 use super::sequence::FrameResult;
 use super::session::{Session, SessionOptions, fingerprint};
 use super::settings::TrackSettings;
+use super::window::Window;
 use crate::anatomy::MeshMetric;
 use crate::capture::Capture;
 use crate::energy::{Backend, Region};
@@ -200,7 +201,7 @@ pub fn merge(
         });
     }
     let frames = merged[0].frame..merged[merged.len() - 1].frame + 1;
-    let mut settled = SettledFrames::new(&options.settings.window);
+    let mut settled = SettledFrames::new(&Window::new(&options.settings.window, capture));
     for r in merged {
         let (r, estimate) = as_tracked(output, r)?;
         settled.push(r, estimate);

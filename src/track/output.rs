@@ -14,7 +14,7 @@ use std::path::{Path, PathBuf};
 use std::time::{Duration, Instant};
 
 use super::sequence::FrameResult;
-use super::window::{Estimate, WindowSettings, settled};
+use super::window::{Estimate, Window, settled};
 use crate::arch::ArchPoses;
 use crate::energy::smooth::Matrix12;
 use crate::error::{Error, Result};
@@ -45,11 +45,11 @@ pub struct SettledFrames {
     estimates: Vec<Estimate>,
     /// The frames the window has settled.
     settled: Vec<ArchPoses>,
-    window: WindowSettings,
+    window: Window,
 }
 
 impl SettledFrames {
-    pub fn new(window: &WindowSettings) -> SettledFrames {
+    pub fn new(window: &Window) -> SettledFrames {
         SettledFrames {
             records: Vec::new(),
             estimates: Vec::new(),
@@ -76,7 +76,7 @@ impl SettledFrames {
         let complete = if end {
             n
         } else {
-            n.saturating_sub(self.window.frames)
+            n.saturating_sub(self.window.settings.frames)
         };
         while self.settled.len() < complete {
             let t = self.settled.len();
@@ -191,7 +191,7 @@ impl TracksWriter {
         force: bool,
         frames: std::ops::Range<u32>,
         fingerprint: &str,
-        window: &WindowSettings,
+        window: &Window,
     ) -> Result<(TracksWriter, Vec<FrameRecordJson>)> {
         let journal_path = journal_path(path);
         // Before anything is read or written: neither may replace a device, pipe or link.
@@ -414,7 +414,7 @@ mod tests {
         let t = tempfile::tempdir().unwrap();
         let out = t.path().join("tracks.json");
         std::fs::write(t.path().join("tracks.json.journal"), text).unwrap();
-        TracksWriter::open(&out, true, false, 0..12, run, &WindowSettings::default())
+        TracksWriter::open(&out, true, false, 0..12, run, &Window::default())
             .map(|(_, records)| records)
     }
 

@@ -15,6 +15,7 @@ use super::search::Solver;
 use super::sequence::{FrameResult, MaskSource, Status, track_frames};
 use super::settings::TrackSettings;
 use super::state::TrackState;
+use super::window::Window;
 use crate::arch::ArchPoses;
 use crate::capture::Capture;
 use crate::energy::contour::ContourEdges;
@@ -119,7 +120,7 @@ impl<'c> Session<'c> {
             options.force,
             all.clone(),
             &fingerprint(capture, &options.settings, options.locate),
-            &options.settings.window,
+            &Window::new(&options.settings.window, capture),
         )?;
         let next = done
             .last()

@@ -1,23 +1,27 @@
 //! A window over frames (a fixed-lag smoother): each frame's poses settled together with the
 //! `frames` before and after it, so that segmentation noise that changes from frame to frame
-//! averages out where the head's motion says it must.
+//! averages out where the motion says it must.
 //!
 //! Each frame's estimate comes with the information its masks gave Gauss-Newton about it
 //! (the normal matrix of its edges, in the increments [ξ_u; ξ_j] that move both arches and the
 //! jaw): its energy, to second order about the estimate. The window minimises the sum of
-//! those quadratics plus a prior on the head's acceleration: the upper arch's second
-//! difference over consecutive frames, measured as in the solver's motion prior (displacement
-//! at the arch's centre, rotation at an arch's radius, mm). The jaw is left to each frame's
-//! masks (it moves fast; its acceleration is no smaller than the masks' noise), but it gains
-//! from the head: where the edges pin the lower arch in the world, a steadier upper arch makes
-//! a truer jaw. The problem is linear in the increments; one solve per frame. A frame without
-//! information (no masks, or found afresh) holds its poses and the others see it as fixed. A
-//! frame's output is final once the `frames` after it are tracked.
+//! those quadratics plus priors on two accelerations: the head's (the upper arch's second
+//! difference over consecutive frames) and the jaw's (the lower arch's pose relative to the
+//! upper's), each measured as in the solver's motion prior (displacement at the arch's centre,
+//! rotation at an arch's radius, mm). The jaw moves fast and turns sharply where an exercise
+//! changes direction, and a capture may be filmed (or read) at a rate its motion outruns, so
+//! both priors are robust: Cauchy's loss, quadratic up to about `acceleration_scale_mm` and
+//! flattening beyond, minimised by reweighting (a few linear solves a frame). A real turn then
+//! costs the prior little and is not bent toward a smooth path. A frame
+//! without information (no masks, or found afresh) holds its poses and the others see it as
+//! fixed. A frame's output is final once the `frames` after it are tracked.
 
-use nalgebra::{DMatrix, DVector, Matrix6, Vector6};
+use nalgebra::{DMatrix, DVector, Matrix6, Vector3, Vector6};
 
+use super::prior::centre;
 use super::search::RADIUS_MM;
-use crate::arch::ArchPoses;
+use crate::arch::{Arch, ArchPoses};
+use crate::capture::Capture;
 use crate::energy::smooth::Matrix12;
 use crate::geometry::Pose;
 
@@ -31,6 +35,12 @@ pub struct WindowSettings {
     /// The weight of the head's acceleration (per mm² of the upper arch's second difference,
     /// against the frames' edge information: pixel lengths per pixel of offset).
     pub head_acceleration: f64,
+    /// The weight of the jaw's acceleration (per mm² of the second difference of the lower
+    /// arch's pose relative to the upper's), as `head_acceleration`'s. 0: none.
+    pub jaw_acceleration: f64,
+    /// Accelerations (mm, at an arch's centre and radius) beyond this are weighed less and less
+    /// (Cauchy's loss): a real fast movement is not bent to the prior. 0: quadratic throughout.
+    pub acceleration_scale_mm: f64,
 }
 
 impl Default for WindowSettings {
@@ -38,6 +48,8 @@ impl Default for WindowSettings {
         WindowSettings {
             frames: 6,
             head_acceleration: 1e3,
+            jaw_acceleration: 500.0,
+            acceleration_scale_mm: 0.5,
         }
     }
 }
@@ -49,7 +61,32 @@ impl WindowSettings {
 
     pub fn validate(&self, rules: &crate::settings::Rules) -> crate::error::Result<()> {
         rules.count("frames", self.frames as u64, 0, 100)?;
-        rules.number("head_acceleration", self.head_acceleration, 0.0, 1e12)
+        rules.number("head_acceleration", self.head_acceleration, 0.0, 1e12)?;
+        rules.number("jaw_acceleration", self.jaw_acceleration, 0.0, 1e12)?;
+        rules.number(
+            "acceleration_scale_mm",
+            self.acceleration_scale_mm,
+            0.0,
+            1e3,
+        )
+    }
+}
+
+/// The window as a run uses it: its settings, and each arch's centre in its model frame,
+/// where the priors measure the arches' motion (a scan's own origin may lie anywhere). The
+/// default measures them at the models' origins.
+#[derive(Debug, Clone, Default)]
+pub struct Window {
+    pub settings: WindowSettings,
+    pub centres: [Vector3<f64>; 2],
+}
+
+impl Window {
+    pub fn new(settings: &WindowSettings, capture: &Capture) -> Window {
+        Window {
+            settings: settings.clone(),
+            centres: [centre(capture, Arch::Upper), centre(capture, Arch::Lower)],
+        }
     }
 }
 
@@ -63,52 +100,129 @@ pub struct Estimate {
 /// Where a frame's information stands for "fixed".
 const FIXED: f64 = 1e12;
 
+/// IRLS rounds of the robust acceleration terms: each re-weighs the terms by their residuals
+/// at the last round's solution.
+const ROBUST_ROUNDS: usize = 4;
+
+/// One prior on a second difference over the window: values `x[k]` (increments from frame
+/// t's pose), the map `jac[k]` from frame k's increment (at `column` in its 12) to `x[k]`'s,
+/// and the metric that turns an increment into mm.
+struct Acceleration {
+    x: Vec<Vector6<f64>>,
+    jac: Vec<Matrix6<f64>>,
+    column: usize,
+    metric: Matrix6<f64>,
+    weight: f64,
+}
+
+impl Acceleration {
+    /// The residual (mm) of the second difference centred on k, at the increments `delta`.
+    fn residual(&self, k: usize, delta: &DVector<f64>) -> Vector6<f64> {
+        let at = |i: usize| {
+            self.x[i] + self.jac[i] * delta.fixed_rows::<6>(12 * i + self.column).into_owned()
+        };
+        self.metric * (at(k - 1) - 2.0 * at(k) + at(k + 1))
+    }
+}
+
 /// Frame `t`'s poses settled with its neighbours in `estimates` (as many of the window's as
 /// there are).
-pub fn settled(estimates: &[Estimate], t: usize, s: &WindowSettings) -> ArchPoses {
+pub fn settled(estimates: &[Estimate], t: usize, window: &Window) -> ArchPoses {
+    let s = &window.settings;
     let own = estimates[t];
-    if s.frames == 0 || own.information.is_none() || s.head_acceleration <= 0.0 {
+    if s.frames == 0
+        || own.information.is_none()
+        || (s.head_acceleration <= 0.0 && s.jaw_acceleration <= 0.0)
+    {
         return own.poses;
     }
     let first = t.saturating_sub(s.frames);
     let last = (t + s.frames).min(estimates.len() - 1);
-    let window = &estimates[first..=last];
-    let n = window.len();
+    let span = &estimates[first..=last];
+    let n = span.len();
     if n < 3 {
         return own.poses;
     }
-    let mut h = DMatrix::<f64>::zeros(12 * n, 12 * n);
-    let mut g = DVector::<f64>::zeros(12 * n);
-    for (k, e) in window.iter().enumerate() {
+    let mut information = DMatrix::<f64>::zeros(12 * n, 12 * n);
+    for (k, e) in span.iter().enumerate() {
         let info = e
             .information
             .unwrap_or_else(|| Matrix12::identity() * FIXED);
-        h.view_mut((12 * k, 12 * k), (12, 12)).copy_from(&info);
+        information
+            .view_mut((12 * k, 12 * k), (12, 12))
+            .copy_from(&info);
     }
-    // The upper arch of every frame relative to frame t's, and the metric at its centre.
+    let mut priors = Vec::new();
+    // The upper arch of every frame relative to frame t's, in world axes, measured at its
+    // centre.
     let here = own.poses.upper;
-    let u: Vec<Vector6<f64>> = window
-        .iter()
-        .map(|e| e.poses.upper.compose(&here.inverse()).log())
-        .collect();
-    let m = metric(&here.translation);
-    for k in 1..n - 1 {
-        let r = m * (u[k - 1] - 2.0 * u[k] + u[k + 1]);
-        for (j, c) in [(k - 1, 1.0), (k, -2.0), (k + 1, 1.0)] {
-            let mj = m * c;
-            for (i, ci) in [(k - 1, 1.0), (k, -2.0), (k + 1, 1.0)] {
-                let block = s.head_acceleration * (mj.transpose() * (m * ci));
-                let mut view = h.view_mut((12 * j, 12 * i), (6, 6));
-                view += block;
-            }
-            let mut gj = g.rows_mut(12 * j, 6);
-            gj -= s.head_acceleration * mj.transpose() * r;
-        }
+    if s.head_acceleration > 0.0 {
+        priors.push(Acceleration {
+            x: span
+                .iter()
+                .map(|e| e.poses.upper.compose(&here.inverse()).log())
+                .collect(),
+            jac: vec![Matrix6::identity(); n],
+            column: 0,
+            metric: metric(&here.transform_point(&window.centres[0])),
+            weight: s.head_acceleration,
+        });
     }
-    let Some(chol) = h.cholesky() else {
-        return own.poses;
+    // The jaw (the lower arch in the upper's frame) of every frame relative to frame t's, in
+    // the upper arch's axes: ξ_j moves frame k's jaw by Ad(upper_k⁻¹)·ξ_j.
+    if s.jaw_acceleration > 0.0 {
+        let jaw_here = own.poses.jaw();
+        priors.push(Acceleration {
+            x: span
+                .iter()
+                .map(|e| e.poses.jaw().compose(&jaw_here.inverse()).log())
+                .collect(),
+            jac: span
+                .iter()
+                .map(|e| e.poses.upper.inverse().adjoint())
+                .collect(),
+            column: 6,
+            metric: metric(&jaw_here.transform_point(&window.centres[1])),
+            weight: s.jaw_acceleration,
+        });
+    }
+    let mut delta = DVector::<f64>::zeros(12 * n);
+    let rounds = if s.acceleration_scale_mm > 0.0 {
+        ROBUST_ROUNDS
+    } else {
+        1
     };
-    let delta = chol.solve(&g);
+    for _ in 0..rounds {
+        let mut h = information.clone();
+        let mut g = DVector::<f64>::zeros(12 * n);
+        for p in &priors {
+            for k in 1..n - 1 {
+                // Cauchy's weight on the residual's length, from the last round's solution.
+                let r = p.residual(k, &delta);
+                let robust = match s.acceleration_scale_mm > 0.0 {
+                    true => 1.0 / (1.0 + (r.norm() / s.acceleration_scale_mm).powi(2)),
+                    false => 1.0,
+                };
+                let w = p.weight * robust;
+                // The residual is linear in δ: r(δ) = r(0) + Σ_i c_i·m·jac_i·δ_i.
+                let r0 = p.residual(k, &DVector::zeros(12 * n));
+                let blocks = [(k - 1, 1.0), (k, -2.0), (k + 1, 1.0)]
+                    .map(|(i, c)| (i, p.metric * p.jac[i] * c));
+                for (j, bj) in &blocks {
+                    for (i, bi) in &blocks {
+                        let mut view = h.view_mut((12 * j + p.column, 12 * i + p.column), (6, 6));
+                        view += w * (bj.transpose() * bi);
+                    }
+                    let mut gj = g.rows_mut(12 * j + p.column, 6);
+                    gj -= w * bj.transpose() * r0;
+                }
+            }
+        }
+        let Some(chol) = h.cholesky() else {
+            return own.poses;
+        };
+        delta = chol.solve(&g);
+    }
     let k = t - first;
     let xi_u = Pose::exp(&delta.fixed_rows::<6>(12 * k).into_owned());
     let xi_j = Pose::exp(&delta.fixed_rows::<6>(12 * k + 6).into_owned());
@@ -137,6 +251,13 @@ mod tests {
 
     use super::*;
 
+    fn at_origins(settings: WindowSettings) -> Window {
+        Window {
+            settings,
+            centres: [Vector3::zeros(); 2],
+        }
+    }
+
     fn at(x: f64, nod: f64) -> ArchPoses {
         let upper = Pose::from_euler_tuple(&[nod, 0.0, 0.0, x, 0.0, 0.0]);
         ArchPoses {
@@ -157,7 +278,7 @@ mod tests {
                 information: Some(weak),
             })
             .collect();
-        let s = WindowSettings::default();
+        let s = at_origins(WindowSettings::default());
         let settled_nod = |e: &[Estimate], t: usize| settled(e, t, &s).upper.to_euler_tuple()[0];
         let nod = settled_nod(&noisy, 6);
         assert!(nod.abs() < 0.002, "the middle frame still nods {nod} rad");
@@ -191,9 +312,70 @@ mod tests {
             })
             .collect();
         for t in [0, 3, 6, 12] {
-            let p = settled(&moving, t, &WindowSettings::default());
+            let p = settled(&moving, t, &at_origins(WindowSettings::default()));
             let (r, d) = p.upper.distance_to(&moving[t].poses.upper);
             assert!(r < 1e-6 && d < 1e-6, "frame {t}: moved {d} mm, {r} rad");
         }
+    }
+
+    /// The head still, the jaw opening by `open[k]` mm (the lower arch lowered), each frame's
+    /// jaw held by its edges with `weak` along that direction and sharply along the others.
+    fn jaw_frames(open: &[f64], weak: f64) -> Vec<Estimate> {
+        let mut info = Matrix12::identity() * 1e6;
+        info[(10, 10)] = weak;
+        open.iter()
+            .map(|y| Estimate {
+                poses: ArchPoses {
+                    upper: Pose::IDENTITY,
+                    lower: Pose::from_translation(Vector3::new(0.0, -10.0 - y, 0.0)),
+                },
+                information: Some(info),
+            })
+            .collect()
+    }
+
+    fn opening(p: &ArchPoses) -> f64 {
+        -10.0 - p.jaw().translation.y
+    }
+
+    #[test]
+    fn jaw_noise_averages_out() {
+        let noisy: Vec<f64> = (0..13)
+            .map(|k| if k % 2 == 0 { 0.1 } else { -0.1 })
+            .collect();
+        let frames = jaw_frames(&noisy, 1e2);
+        let y = opening(&settled(&frames, 6, &at_origins(WindowSettings::default())));
+        assert!(y.abs() < 0.03, "the middle frame's jaw is still {y} mm off");
+        let off = WindowSettings {
+            jaw_acceleration: 0.0,
+            ..WindowSettings::default()
+        };
+        let y = opening(&settled(&frames, 6, &at_origins(off)));
+        assert!((y - 0.1).abs() < 1e-6, "without the prior it moved to {y}");
+    }
+
+    #[test]
+    fn a_sharp_turn_of_the_jaw_is_bent_less_with_the_robust_loss() {
+        // The jaw opening at 2 mm a frame, closing again from frame 6: a turn of 4 mm a
+        // frame², far beyond the masks' noise, that the frames hold only weakly.
+        let turn: Vec<f64> = (0..13)
+            .map(|k| 12.0 - 2.0 * (k as f64 - 6.0).abs())
+            .collect();
+        let frames = jaw_frames(&turn, 1e2);
+        let bent = |scale: f64| {
+            let s = WindowSettings {
+                acceleration_scale_mm: scale,
+                ..WindowSettings::default()
+            };
+            (opening(&settled(&frames, 6, &at_origins(s))) - 12.0).abs()
+        };
+        let (robust, quadratic) = (
+            bent(WindowSettings::default().acceleration_scale_mm),
+            bent(0.0),
+        );
+        assert!(
+            robust < 0.25 * quadratic,
+            "the turn is bent by {robust} mm with the robust loss, {quadratic} without"
+        );
     }
 }

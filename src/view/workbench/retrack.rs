@@ -17,6 +17,7 @@ use crate::error::{Error, Result};
 use crate::formats::{FrameRecordJson, Status, TRACKS_FORMAT, TracksJson};
 use crate::io::write_json_atomic;
 use crate::track::output::{SettledFrames, TracksWriter, as_tracked, journal_path, record};
+use crate::track::window::Window;
 use crate::track::{FrameResult, MaskSource, Session, SessionOptions, TrackState, track_frames};
 
 /// A re-track's progress, as the page polls it.
@@ -182,7 +183,7 @@ impl Workbench {
                     false,
                     self.capture.frames(),
                     &self.fingerprint,
-                    &self.retracking.settings.window,
+                    &Window::new(&self.retracking.settings.window, &self.capture),
                 )?;
                 (writer.finish()?, Some(frame))
             }
@@ -267,7 +268,7 @@ impl Workbench {
             .chain(new)
             .collect();
         all.sort_by_key(|r| r.frame);
-        let mut settled = SettledFrames::new(&settings.window);
+        let mut settled = SettledFrames::new(&Window::new(&settings.window, &self.capture));
         for r in all {
             let (r, e) = as_tracked(&self.tracks, r)?;
             settled.push(r, e);
