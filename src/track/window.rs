@@ -47,7 +47,7 @@ impl Default for WindowSettings {
     fn default() -> Self {
         WindowSettings {
             frames: 6,
-            head_acceleration: 1e3,
+            head_acceleration: 1e4,
             jaw_acceleration: 500.0,
             acceleration_scale_mm: 0.5,
         }
@@ -282,8 +282,8 @@ mod tests {
         let settled_nod = |e: &[Estimate], t: usize| settled(e, t, &s).upper.to_euler_tuple()[0];
         let nod = settled_nod(&noisy, 6);
         assert!(nod.abs() < 0.002, "the middle frame still nods {nod} rad");
-        // Held far more sharply than the prior holds the head's acceleration (1e3 per mm²,
-        // about 1e6 per rad² at an arch's radius): the poses stay where the frames put them.
+        // Held far more sharply than the prior holds the head's acceleration (1e4 per mm²,
+        // about 1e7 per rad² at an arch's radius): the poses stay where the frames put them.
         let sharp: Vec<Estimate> = noisy
             .iter()
             .map(|e| Estimate {
