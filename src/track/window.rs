@@ -116,12 +116,13 @@ struct Acceleration {
 }
 
 impl Acceleration {
-    /// The residual (mm) of the second difference centred on k, at the increments `delta`.
-    fn residual(&self, k: usize, delta: &DVector<f64>) -> Vector6<f64> {
-        let at = |i: usize| {
-            self.x[i] + self.jac[i] * delta.fixed_rows::<6>(12 * i + self.column).into_owned()
-        };
-        self.metric * (at(k - 1) - 2.0 * at(k) + at(k + 1))
+    /// The second difference centred on k (mm), which is linear in the increments: its value
+    /// at none, and the map from each of frames k−1, k and k+1's increments.
+    fn linearised(&self, k: usize) -> (Vector6<f64>, [(usize, Matrix6<f64>); 3]) {
+        let r0 = self.metric * (self.x[k - 1] - 2.0 * self.x[k] + self.x[k + 1]);
+        let blocks = [(k - 1, 1.0), (k, -2.0), (k + 1, 1.0)]
+            .map(|(i, c)| (i, self.metric * self.jac[i] * c));
+        (r0, blocks)
     }
 }
 
@@ -197,17 +198,17 @@ pub fn settled(estimates: &[Estimate], t: usize, window: &Window) -> ArchPoses {
         let mut g = DVector::<f64>::zeros(12 * n);
         for p in &priors {
             for k in 1..n - 1 {
-                // Cauchy's weight on the residual's length, from the last round's solution.
-                let r = p.residual(k, &delta);
-                let robust = match s.acceleration_scale_mm > 0.0 {
-                    true => 1.0 / (1.0 + (r.norm() / s.acceleration_scale_mm).powi(2)),
-                    false => 1.0,
+                let (r0, blocks) = p.linearised(k);
+                // Cauchy's weight on the residual's length at the last round's solution.
+                let robust = if s.acceleration_scale_mm > 0.0 {
+                    let r = blocks.iter().fold(r0, |r, (i, b)| {
+                        r + b * delta.fixed_rows::<6>(12 * i + p.column)
+                    });
+                    1.0 / (1.0 + (r.norm() / s.acceleration_scale_mm).powi(2))
+                } else {
+                    1.0
                 };
                 let w = p.weight * robust;
-                // The residual is linear in δ: r(δ) = r(0) + Σ_i c_i·m·jac_i·δ_i.
-                let r0 = p.residual(k, &DVector::zeros(12 * n));
-                let blocks = [(k - 1, 1.0), (k, -2.0), (k + 1, 1.0)]
-                    .map(|(i, c)| (i, p.metric * p.jac[i] * c));
                 for (j, bj) in &blocks {
                     for (i, bi) in &blocks {
                         let mut view = h.view_mut((12 * j + p.column, 12 * i + p.column), (6, 6));
@@ -254,7 +255,7 @@ mod tests {
     fn at_origins(settings: WindowSettings) -> Window {
         Window {
             settings,
-            centres: [Vector3::zeros(); 2],
+            ..Window::default()
         }
     }
 
