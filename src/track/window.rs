@@ -379,4 +379,91 @@ mod tests {
             "the turn is bent by {robust} mm with the robust loss, {quadratic} without"
         );
     }
+
+    #[test]
+    fn the_settled_arches_do_not_depend_on_where_the_scans_put_their_origins() {
+        // A head that turns and nods, a jaw that opens, both with noise, each frame's nod and
+        // opening held weakly. The same motion with each scan's vertices moved (its origin
+        // elsewhere: poses composed with the inverse shift, centres moved with the vertices)
+        // must settle to the same arches in the world.
+        let mut info = Matrix12::identity() * 1e5;
+        info[(0, 0)] = 1e3;
+        info[(6, 6)] = 1e3;
+        let frames: Vec<Estimate> = (0..13)
+            .map(|k| {
+                let (k, noise) = (k as f64, if k % 2 == 0 { 1.0 } else { -1.0 });
+                let upper = Pose::from_euler_tuple(&[
+                    0.01 * noise,
+                    0.02 * k,
+                    0.0,
+                    0.3 * k,
+                    0.05 * k * k,
+                    100.0,
+                ]);
+                let jaw = Pose::from_euler_tuple(&[
+                    -0.03 * k + 0.004 * noise,
+                    0.0,
+                    0.0,
+                    0.0,
+                    -12.0 - 0.2 * k,
+                    -3.0,
+                ]);
+                Estimate {
+                    poses: ArchPoses {
+                        upper,
+                        lower: upper.compose(&jaw),
+                    },
+                    information: Some(info),
+                }
+            })
+            .collect();
+        let centres = [
+            Vector3::new(0.0, 2.0, -15.0),
+            Vector3::new(0.0, -2.0, -12.0),
+        ];
+        let shifts = [
+            Vector3::new(40.0, -30.0, 70.0),
+            Vector3::new(-50.0, 20.0, 35.0),
+        ];
+        let moved: Vec<Estimate> = frames
+            .iter()
+            .map(|e| Estimate {
+                poses: ArchPoses {
+                    upper: e.poses.upper.compose(&Pose::from_translation(-shifts[0])),
+                    lower: e.poses.lower.compose(&Pose::from_translation(-shifts[1])),
+                },
+                ..*e
+            })
+            .collect();
+        let settings = WindowSettings::default();
+        let here = settled(
+            &frames,
+            6,
+            &Window {
+                settings: settings.clone(),
+                centres,
+            },
+        );
+        let there = settled(
+            &moved,
+            6,
+            &Window {
+                settings,
+                centres: [centres[0] + shifts[0], centres[1] + shifts[1]],
+            },
+        );
+        assert!(
+            here.upper.distance_to(&frames[6].poses.upper).1 > 0.01,
+            "the window did not move the frame"
+        );
+        for (a, (p, q)) in [(here.upper, there.upper), (here.lower, there.lower)]
+            .into_iter()
+            .enumerate()
+        {
+            let off = (p.transform_point(&centres[a])
+                - q.transform_point(&(centres[a] + shifts[a])))
+            .norm();
+            assert!(off < 1e-6, "arch {a}'s centre is {off} mm apart");
+        }
+    }
 }
