@@ -490,8 +490,60 @@ fn segment_makes_masks_from_colour_frames() {
 #[test]
 fn segment_finds_the_interior_inside_the_lips_on_hard_photos() {
     let tmp = tempfile::tempdir().unwrap();
-    let cap = tmp.path().join("cap");
-    ok(&[
+    let (out, _) = segmented_hard_photos(tmp.path(), &[], |_| {});
+    let iou = |name: &str| iou_in(&out, name);
+    assert!(iou("IoU teeth") > 0.88, "{out}");
+    assert!(iou("mouth interior") > 0.9, "{out}");
+}
+
+/// A jaw that moves faster than it can be followed (the hard preset starts its exercise again
+/// halfway: wide open, then closed a frame later): masks made from where the jaw was expected
+/// give a closed mouth's lower crowns to the upper arch or to nothing, and the frame is lost.
+/// Such a frame is segmented again from wherever the jaw may be, and the jaw is found again
+/// (before the second look: 4.6 mm at the worst frame, 1.2 mm two frames later).
+#[test]
+fn segment_finds_a_lost_jaw_again() {
+    let tmp = tempfile::tempdir().unwrap();
+    let (_, jaw) = segmented_hard_photos(tmp.path(), &["--preset", "hard", "--seed", "1"], |_| {});
+    for &(frame, error) in &jaw {
+        assert!(error < 2.5, "frame {frame}: jaw {error} mm; {jaw:?}");
+        if frame >= 7 {
+            assert!(error < 1.0, "frame {frame}: jaw {error} mm; {jaw:?}");
+        }
+    }
+}
+
+/// The mouth closes for three frames (lip colour painted over the teeth and the opening in
+/// every camera) while the jaw goes on moving. The masks of the closed mouth show no teeth
+/// (specks at most, which are not taken for an arch), and once it opens again the jaw is found
+/// where it went (before the second look: 3.6, 5.9 and 8.3 mm off over those frames).
+#[test]
+fn segment_finds_the_jaw_again_after_the_mouth_closed() {
+    let tmp = tempfile::tempdir().unwrap();
+    let (_, jaw) = segmented_hard_photos(tmp.path(), &["--seed", "0"], |cap| {
+        for cam in ["cam0", "cam1", "cam2"] {
+            for f in 5..8 {
+                close_mouth(cap, &format!("{cam}/{f:06}.png"));
+            }
+        }
+    });
+    for &(frame, error) in &jaw {
+        assert!(error < 2.0, "frame {frame}: jaw {error} mm; {jaw:?}");
+        if frame >= 8 {
+            assert!(error < 1.0, "frame {frame}: jaw {error} mm; {jaw:?}");
+        }
+    }
+}
+
+/// What `segment` printed, and each frame's jaw error (mm), on 13 frames of hard photos
+/// (`synth` with `args` besides), `change` done to the capture first.
+fn segmented_hard_photos(
+    dir: &Path,
+    args: &[&str],
+    change: impl FnOnce(&Path),
+) -> (String, Vec<(u64, f64)>) {
+    let cap = dir.join("cap");
+    let mut synth = vec![
         "synth",
         s(&cap),
         "--frames",
@@ -499,13 +551,50 @@ fn segment_finds_the_interior_inside_the_lips_on_hard_photos() {
         "--images",
         "--photos",
         "hard",
-    ]);
+    ];
+    synth.extend(args);
+    ok(&synth);
+    change(&cap);
     std::fs::remove_dir_all(cap.join("masks")).unwrap();
-    let tracks = tmp.path().join("tracks.json");
+    let tracks = dir.join("tracks.json");
     let out = ok(&["segment", s(&cap), "-o", s(&tracks), "--backend", "cpu"]);
-    let iou = |name: &str| iou_in(&out, name);
-    assert!(iou("IoU teeth") > 0.88, "{out}");
-    assert!(iou("mouth interior") > 0.9, "{out}");
+    let jaw = jaw_errors(&cap, &tracks);
+    assert_eq!(jaw.len(), 13, "{jaw:?}");
+    (out, jaw)
+}
+
+/// Picture `name` (`<camera>/<frame>.png`) of `cap` with lip colour over the box around its
+/// true labels, 6 pixels wider each way: a mouth closed over the teeth.
+fn close_mouth(cap: &Path, name: &str) {
+    let truth = image::open(cap.join("gt/masks").join(name))
+        .unwrap()
+        .into_luma8();
+    let (mut x0, mut y0, mut x1, mut y1) = (u32::MAX, u32::MAX, 0, 0);
+    for (x, y, v) in truth.enumerate_pixels() {
+        if v.0[0] != 0 {
+            (x0, y0, x1, y1) = (x0.min(x), y0.min(y), x1.max(x), y1.max(y));
+        }
+    }
+    let path = cap.join("images").join(name);
+    let mut picture = image::open(&path).unwrap().into_rgb8();
+    for y in y0.saturating_sub(6)..(y1 + 7).min(picture.height()) {
+        for x in x0.saturating_sub(6)..(x1 + 7).min(picture.width()) {
+            picture.put_pixel(x, y, image::Rgb([172, 84, 88]));
+        }
+    }
+    picture.save(&path).unwrap();
+}
+
+/// Each frame's jaw error (mm) in `score`'s report of `tracks` against the capture's truth.
+fn jaw_errors(cap: &Path, tracks: &Path) -> Vec<(u64, f64)> {
+    let report: serde_json::Value =
+        serde_json::from_str(&ok(&["score", s(cap), s(tracks), "--json"])).unwrap();
+    report["per_frame"]
+        .as_array()
+        .unwrap_or_else(|| panic!("no per_frame in {report}"))
+        .iter()
+        .map(|f| (f[0].as_u64().unwrap(), f[1][2].as_f64().unwrap()))
+        .collect()
 }
 
 /// The IoU `segment` printed after `name` in its report `out`.

@@ -22,6 +22,7 @@ pub mod penalties;
 pub mod prior;
 pub mod score;
 pub mod search;
+mod second_look;
 pub mod sequence;
 pub mod session;
 pub mod settings;

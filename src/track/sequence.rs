@@ -15,6 +15,7 @@ use super::locate::relocate;
 use super::manifold::JawManifold;
 use super::penalties::Penalties;
 use super::prior::{JawPrior, centre};
+use super::second_look::with_second_look;
 use super::search::{ArchSearch, Found, RADIUS_MM, Solver, search};
 use super::settings::TrackSettings;
 use super::state::{TrackState, as_written};
@@ -55,8 +56,15 @@ fn extrapolate(last: &Pose, before: &Pose) -> Pose {
 /// tracking goes, from where it expects the arches (`jawtrack segment`).
 pub trait MaskSource {
     /// The masks of `frame`; `expected`: the poses tracking will search from (the last good
-    /// one first).
+    /// one first). Asked again for the same frame, the masks replace the earlier ones, made
+    /// as if the earlier call had not been.
     fn frame_masks(&mut self, frame: u32, expected: &[ArchPoses]) -> Result<FrameMasks>;
+
+    /// Whether the masks depend on `expected`: a frame tracked `low-confidence` from them is
+    /// then looked at again, its masks made from wherever the jaw may be.
+    fn follows_expected(&self) -> bool {
+        false
+    }
 }
 
 /// The poses a frame's search starts from: the last good pose, its constant-velocity
@@ -157,8 +165,12 @@ pub fn track_frames(
     if let Some(source) = source {
         for &frame in frames {
             let started = Instant::now();
-            let masks = source.frame_masks(frame, &starts(state))?;
-            step(frame, masks, started, state)?;
+            let (result, masks) = with_second_look(&run, engine, source, frame, state)?;
+            let result = FrameResult {
+                seconds: started.elapsed().as_secs_f64(),
+                ..result
+            };
+            on_frame(&result, &masks)?;
         }
         return Ok(());
     }
@@ -224,11 +236,11 @@ fn confidence(settings: &TrackSettings, state: &TrackState, worst_area_error: f6
 
 /// What stays the same over a run: the capture, its settings, the arches' centres (in their
 /// model frames), the jaw prior and the penalties.
-struct Run<'a> {
-    capture: &'a Capture,
+pub(super) struct Run<'a> {
+    pub(super) capture: &'a Capture,
     settings: TrackSettings,
     centres: [Vector3<f64>; 2],
-    prior: JawPrior,
+    pub(super) prior: JawPrior,
     penalties: Penalties,
     /// Each arch's contour edges.
     edges: [ContourEdges; 2],
@@ -285,7 +297,7 @@ impl Run<'_> {
     }
 }
 
-fn track_frame(
+pub(super) fn track_frame(
     run: &Run,
     engine: &mut dyn EnergyEngine,
     frame: u32,
