@@ -8,9 +8,9 @@ use std::ops::Range;
 use std::path::{Path, PathBuf};
 
 use super::output::{SettledFrames, as_tracked, check_records, journal_path};
-use super::sequence::FrameResult;
 use super::session::{Session, SessionOptions, fingerprint};
 use super::settings::TrackSettings;
+use super::state::FrameResult;
 use super::window::Window;
 use crate::anatomy::MeshMetric;
 use crate::capture::Capture;

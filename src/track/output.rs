@@ -13,7 +13,7 @@ use std::io::Write;
 use std::path::{Path, PathBuf};
 use std::time::{Duration, Instant};
 
-use super::sequence::FrameResult;
+use super::state::FrameResult;
 use super::window::{Estimate, Window, settled};
 use crate::arch::ArchPoses;
 use crate::energy::smooth::Matrix12;

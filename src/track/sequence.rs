@@ -13,58 +13,23 @@ use super::contact::{Contact, ContactSettings};
 use super::joint_frame::JointFrame;
 use super::locate::relocate;
 use super::manifold::JawManifold;
+use super::mask_source::{MaskSource, with_second_look};
 use super::penalties::Penalties;
 use super::prior::{JawPrior, centre};
-use super::second_look::with_second_look;
 use super::search::{ArchSearch, Found, RADIUS_MM, Solver, search};
 use super::settings::TrackSettings;
-use super::state::{TrackState, as_written};
+use super::state::{FrameResult, TrackState, as_written};
 use crate::arch::{Arch, ArchPoses};
 use crate::capture::{Capture, FrameMasks, MaskMode};
 use crate::energy::contour::ContourEdges;
-use crate::energy::smooth::Matrix12;
 use crate::energy::{Energy, EnergyEngine};
 use crate::error::Result;
 pub use crate::formats::Status;
 use crate::geometry::Pose;
 
-/// One tracked frame.
-#[derive(Debug, Clone)]
-pub struct FrameResult {
-    pub frame: u32,
-    pub poses: ArchPoses,
-    /// Final energies (upper, lower); `None` for a frame without data.
-    pub energies: Option<[Energy; 2]>,
-    pub status: Status,
-    pub evaluations: usize,
-    /// Gauss-Newton steps (each a Jacobian of every silhouette sample; 0 for the paper's
-    /// search).
-    pub steps: usize,
-    /// How sharply the masks hold the poses (Gauss-Newton's information about them, in
-    /// [ξ_u; ξ_j]): what the window over frames weighs the frame by. `None` without masks,
-    /// for a frame found afresh by Gauss-Newton, or with the window off.
-    pub information: Option<Matrix12>,
-    pub seconds: f64,
-}
-
 /// Constant-velocity prediction: the last motion applied once more.
 fn extrapolate(last: &Pose, before: &Pose) -> Pose {
     last.compose(&before.inverse()).compose(last)
-}
-
-/// Where a frame's masks come from when they are not read from the capture's files: made as
-/// tracking goes, from where it expects the arches (`jawtrack segment`).
-pub trait MaskSource {
-    /// The masks of `frame`; `expected`: the poses tracking will search from (the last good
-    /// one first). Asked again for the same frame, the masks replace the earlier ones, made
-    /// as if the earlier call had not been.
-    fn frame_masks(&mut self, frame: u32, expected: &[ArchPoses]) -> Result<FrameMasks>;
-
-    /// Whether the masks depend on `expected`: a frame tracked `low-confidence` from them is
-    /// then looked at again, its masks made from wherever the jaw may be.
-    fn follows_expected(&self) -> bool {
-        false
-    }
 }
 
 /// The poses a frame's search starts from: the last good pose, its constant-velocity
@@ -165,7 +130,13 @@ pub fn track_frames(
     if let Some(source) = source {
         for &frame in frames {
             let started = Instant::now();
-            let (result, masks) = with_second_look(&run, engine, source, frame, state)?;
+            let expected = starts(state);
+            let coarse = &run.prior.coarse;
+            let mut track = |masks: &FrameMasks, state: &mut TrackState| {
+                track_frame(&run, engine, frame, masks, state)
+            };
+            let (result, masks) =
+                with_second_look(capture, coarse, source, frame, &expected, state, &mut track)?;
             let result = FrameResult {
                 seconds: started.elapsed().as_secs_f64(),
                 ..result
@@ -236,11 +207,11 @@ fn confidence(settings: &TrackSettings, state: &TrackState, worst_area_error: f6
 
 /// What stays the same over a run: the capture, its settings, the arches' centres (in their
 /// model frames), the jaw prior and the penalties.
-pub(super) struct Run<'a> {
-    pub(super) capture: &'a Capture,
+struct Run<'a> {
+    capture: &'a Capture,
     settings: TrackSettings,
     centres: [Vector3<f64>; 2],
-    pub(super) prior: JawPrior,
+    prior: JawPrior,
     penalties: Penalties,
     /// Each arch's contour edges.
     edges: [ContourEdges; 2],
@@ -297,7 +268,7 @@ impl Run<'_> {
     }
 }
 
-pub(super) fn track_frame(
+fn track_frame(
     run: &Run,
     engine: &mut dyn EnergyEngine,
     frame: u32,

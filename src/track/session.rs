@@ -8,12 +8,14 @@ use std::path::{Path, PathBuf};
 use std::time::Instant;
 
 use super::locate::locate;
+use super::mask_source::MaskSource;
 use super::output::TracksWriter;
 use super::overlay;
 use super::score::{ScoreReport, score};
 use super::search::Solver;
-use super::sequence::{FrameResult, MaskSource, Status, track_frames};
+use super::sequence::{Status, track_frames};
 use super::settings::TrackSettings;
+use super::state::FrameResult;
 use super::state::TrackState;
 use super::window::Window;
 use crate::arch::ArchPoses;

@@ -8,9 +8,30 @@ use std::collections::VecDeque;
 use std::path::Path;
 
 use crate::arch::{Arch, ArchPoses};
+use crate::energy::Energy;
+use crate::energy::smooth::Matrix12;
 use crate::error::{Error, Result};
 use crate::formats::{FrameRecordJson, PoseJson, Status};
 use crate::geometry::Pose;
+
+/// One tracked frame.
+#[derive(Debug, Clone)]
+pub struct FrameResult {
+    pub frame: u32,
+    pub poses: ArchPoses,
+    /// Final energies (upper, lower); `None` for a frame without data.
+    pub energies: Option<[Energy; 2]>,
+    pub status: Status,
+    pub evaluations: usize,
+    /// Gauss-Newton steps (each a Jacobian of every silhouette sample; 0 for the paper's
+    /// search).
+    pub steps: usize,
+    /// How sharply the masks hold the poses (Gauss-Newton's information about them, in
+    /// [ξ_u; ξ_j]): what the window over frames weighs the frame by. `None` without masks,
+    /// for a frame found afresh by Gauss-Newton, or with the window off.
+    pub information: Option<Matrix12>,
+    pub seconds: f64,
+}
 
 /// The last poses (and the ones before, for the velocity) and recent area errors of good
 /// frames.

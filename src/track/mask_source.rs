@@ -1,13 +1,28 @@
-//! A second look at a frame lost on masks made from where tracking expected the arches
-//! (`jawtrack segment`): made again from wherever the jaw may be.
+//! Where a frame's masks come from when they are made as tracking goes (`jawtrack segment`),
+//! and the second look at a frame lost on such masks: made again from wherever the jaw may be.
 
-use super::sequence::{FrameResult, MaskSource, Run, Status, starts, track_frame};
-use super::state::TrackState;
+use super::state::{FrameResult, TrackState};
 use crate::arch::{ArchPoses, LOWER_BIT, UPPER_BIT};
 use crate::capture::{Capture, FrameMasks};
-use crate::energy::EnergyEngine;
 use crate::energy::raster::render_labels;
 use crate::error::Result;
+use crate::formats::Status;
+use crate::geometry::Pose;
+
+/// Where a frame's masks come from when they are not read from the capture's files: made as
+/// tracking goes, from where it expects the arches (`jawtrack segment`).
+pub trait MaskSource {
+    /// The masks of `frame`; `expected`: the poses tracking will search from (the last good
+    /// one first). Asked again for the same frame, the masks replace the earlier ones, made
+    /// as if the earlier call had not been.
+    fn frame_masks(&mut self, frame: u32, expected: &[ArchPoses]) -> Result<FrameMasks>;
+
+    /// Whether the masks depend on `expected`: a frame tracked `low-confidence` from them is
+    /// then looked at again, its masks made from wherever the jaw may be.
+    fn follows_expected(&self) -> bool {
+        false
+    }
+}
 
 /// Below this share of the arches' drawn pixels labelled teeth, a frame's masks show no
 /// teeth to look for (a closed mouth, whose masks hold specks at most): a second look, drawing
@@ -40,26 +55,28 @@ fn teeth_shown(capture: &Capture, masks: &FrameMasks, poses: &ArchPoses) -> f64 
     }
 }
 
-/// A frame whose masks `source` makes from where tracking expects the arches. Masks made
-/// from a lost arch's pose lose it again (a lower arch expected wide open gives the crowns of a
-/// closed mouth to the upper arch, or to nothing): a frame tracked `low-confidence` has its
-/// masks made again from wherever the jaw may be (the jaw prior's coarse grid on the upper
-/// arch just found, beside the starts) and is tracked from those, kept where it is then `ok`
-/// or fits its masks better; unless its masks show hardly any teeth ([`THIN_TEETH`]).
-pub(super) fn with_second_look(
-    run: &Run,
-    engine: &mut dyn EnergyEngine,
+/// A frame whose masks `source` makes from where tracking expects the arches (`expected`, the
+/// frame's starts), tracked by `track`. Masks made from a lost arch's pose lose it again (a
+/// lower arch expected wide open gives the crowns of a closed mouth to the upper arch, or to
+/// nothing): a frame tracked `low-confidence` has its masks made again from wherever the jaw
+/// may be (`coarse`, the jaw prior's coarse grid, on the upper arch just found, beside the
+/// starts) and is tracked from those, kept where it is then `ok` or fits its masks better;
+/// unless its masks show hardly any teeth ([`THIN_TEETH`]).
+pub fn with_second_look(
+    capture: &Capture,
+    coarse: &[Pose],
     source: &mut dyn MaskSource,
     frame: u32,
+    expected: &[ArchPoses],
     state: &mut TrackState,
+    track: &mut dyn FnMut(&FrameMasks, &mut TrackState) -> Result<FrameResult>,
 ) -> Result<(FrameResult, FrameMasks)> {
-    let expected = starts(state);
-    let masks = source.frame_masks(frame, &expected)?;
+    let masks = source.frame_masks(frame, expected)?;
     let before = state.clone();
-    let result = track_frame(run, engine, frame, &masks, state)?;
+    let result = track(&masks, state)?;
     if result.status != Status::LowConfidence
         || !source.follows_expected()
-        || teeth_shown(run.capture, &masks, &result.poses) < THIN_TEETH
+        || teeth_shown(capture, &masks, &result.poses) < THIN_TEETH
     {
         return Ok((result, masks));
     }
@@ -67,14 +84,14 @@ pub(super) fn with_second_look(
     let wider: Vec<ArchPoses> = expected
         .iter()
         .copied()
-        .chain(run.prior.coarse.iter().map(|jaw| ArchPoses {
+        .chain(coarse.iter().map(|jaw| ArchPoses {
             upper,
             lower: upper.compose(jaw),
         }))
         .collect();
     let again = source.frame_masks(frame, &wider)?;
     let mut looked = before;
-    let second = track_frame(run, engine, frame, &again, &mut looked)?;
+    let second = track(&again, &mut looked)?;
     // Masks made from more poses may show more, so the area error (a share of the masks'
     // pixels) is what compares the two looks, not the energy.
     let worst = |r: &FrameResult| {
@@ -94,7 +111,6 @@ pub(super) fn with_second_look(
         ));
     }
     // The first look stands, its masks made again (and written) as they were.
-    let masks = source.frame_masks(frame, &expected)?;
+    let masks = source.frame_masks(frame, expected)?;
     Ok((result, masks))
 }
-
