@@ -99,9 +99,9 @@ pub fn with_second_look(
             .as_ref()
             .map_or(f64::INFINITY, |e| e[0].area_error().max(e[1].area_error()))
     };
+    let evaluations = result.evaluations + second.evaluations;
     if second.status == Status::Ok || worst(&second) < worst(&result) {
         *state = looked;
-        let evaluations = result.evaluations + second.evaluations;
         return Ok((
             FrameResult {
                 evaluations,
@@ -112,5 +112,11 @@ pub fn with_second_look(
     }
     // The first look stands, its masks made again (and written) as they were.
     let masks = source.frame_masks(frame, expected)?;
-    Ok((result, masks))
+    Ok((
+        FrameResult {
+            evaluations,
+            ..result
+        },
+        masks,
+    ))
 }

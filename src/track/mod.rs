@@ -34,5 +34,4 @@ pub use search::{ArchSearch, Found, GaussNewtonSettings, SearchSettings, Solver,
 pub use sequence::{Status, track_frames};
 pub use session::{Session, SessionOptions, Summary, score_records};
 pub use settings::{JawSpace, LabelledSettings, TrackSettings};
-pub use state::FrameResult;
-pub use state::TrackState;
+pub use state::{FrameResult, TrackState};
