@@ -11,8 +11,8 @@ use jawtrack::energy::contour::ContourEdges;
 use jawtrack::energy::edge_terms::{EdgeParams, EdgeQuery};
 use jawtrack::energy::gpu::{GpuEnergy, GpuError};
 use jawtrack::energy::hand_counted::{camera, nothing, square};
-use jawtrack::energy::smooth;
 use jawtrack::energy::{CpuEnergy, EnergyEngine, Region, Scene, Weights};
+use jawtrack::energy::{pyramid, smooth};
 use jawtrack::geometry::{Camera, Pose};
 use jawtrack::synth::{MaskKind, Preset};
 use nalgebra::{Vector3, Vector6};
@@ -340,8 +340,8 @@ fn gpu_matches_cpu_through_rational_and_fisheye_lenses() {
 /// The smooth energy's edge terms (shaders/edge_terms.wgsl) against the CPU twin, sample by
 /// sample, on synthetic frames whose masks label the mouth (so that every cost is read: the
 /// cross-label and over-mouth weights, the other arch's label), the samples drawn 0.5-1 px off
-/// the truth and moved by a further increment; and the GPU's gradient against central
-/// differences of its own energy.
+/// the truth and moved by a further increment, at the masks' resolution and at the pyramid's
+/// half; and the GPU's gradient against central differences of its own energy.
 fn compare_edge_terms(capture: &std::path::Path, what: &str) {
     let c = Capture::open(capture).unwrap();
     let scene = Scene::from_capture(&c);
@@ -352,17 +352,20 @@ fn compare_edge_terms(capture: &std::path::Path, what: &str) {
     let edges = [ContourEdges::of(c.upper()), ContourEdges::of(c.lower())];
     let apart = matches!(c.mask_mode(), MaskMode::PerArch { .. });
     let (mut compared, mut differing, mut worst_offset) = (0, 0, 0.0f64);
-    for f in [0, 4] {
+    // The last at the pyramid's half resolution, as Gauss-Newton's coarse stage reads it.
+    for (f, level) in [(0, 0), (4, 0), (4, 1)] {
+        let what = format!("{what}, level {level}");
         let frame = c.load_masks(f).unwrap();
         g.set_frame(&frame).unwrap();
         cpu.set_frame(&frame).unwrap();
         let views: Vec<usize> = (0..scene.cameras.len())
             .filter(|&k| scene.cameras[k].is_some() && frame.masks[k].is_some())
             .collect();
-        let cameras: Vec<&Camera> = views
+        let level_cameras: Vec<Camera> = views
             .iter()
-            .map(|&k| scene.cameras[k].as_ref().unwrap())
+            .map(|&k| pyramid::camera(scene.cameras[k].as_ref().unwrap(), level))
             .collect();
+        let cameras: Vec<&Camera> = level_cameras.iter().collect();
         let truth = c.gt_poses(f).unwrap();
         let poses = ArchPoses {
             upper: truth
@@ -389,6 +392,7 @@ fn compare_edge_terms(capture: &std::path::Path, what: &str) {
                     cross: 1.0,
                     mouth: 1.0,
                 },
+                level,
             },
         };
         let (tc, tg) = (cpu.edge_terms(&q).unwrap(), g.edge_terms(&q).unwrap());

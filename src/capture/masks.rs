@@ -6,6 +6,8 @@
 use std::collections::BTreeSet;
 use std::path::Path;
 
+use rayon::prelude::*;
+
 use crate::error::{Error, Result};
 
 pub use crate::arch::{LOWER_BIT, UPPER_BIT};
@@ -106,29 +108,36 @@ impl LabelMask {
         if k <= 1 {
             return self;
         }
-        let (w, h) = (self.width / k, self.height / k);
-        let mut data = Vec::with_capacity((w * h) as usize);
-        for by in 0..h {
-            for bx in 0..w {
-                let mut votes = [0u32; LABEL_BITS as usize + 1];
-                for y in by * k..(by + 1) * k {
-                    let row = (y * self.width) as usize;
-                    for x in bx * k..(bx + 1) * k {
-                        votes[(self.data[row + x as usize] & LABEL_BITS) as usize] += 1;
+        let (w, h) = ((self.width / k) as usize, (self.height / k) as usize);
+        let (k, width) = (k as usize, self.width as usize);
+        let mut data = vec![0u8; w * h];
+        data.par_chunks_mut(w.max(1))
+            .enumerate()
+            .for_each(|(by, out)| {
+                let rows = &self.data[by * k * width..(by + 1) * k * width];
+                for (bx, label) in out.iter_mut().enumerate() {
+                    let block = || rows.chunks(width).flat_map(|r| &r[bx * k..(bx + 1) * k]);
+                    let first = rows[bx * k] & LABEL_BITS;
+                    // Most blocks hold one label (off the mask's edges).
+                    if block().all(|&v| v & LABEL_BITS == first) {
+                        *label = first;
+                        continue;
                     }
+                    let mut votes = [0u32; LABEL_BITS as usize + 1];
+                    for &v in block() {
+                        votes[(v & LABEL_BITS) as usize] += 1;
+                    }
+                    let most = *votes.iter().max().expect("labels");
+                    let tied = votes.iter().filter(|&&v| v == most).count();
+                    *label = (0..=LABEL_BITS)
+                        .filter(|&l| votes[l as usize] == most)
+                        .nth((bx + by) % tied)
+                        .expect("a tied label");
                 }
-                let most = *votes.iter().max().expect("labels");
-                let tied = votes.iter().filter(|&&v| v == most).count();
-                let label = (0..=LABEL_BITS)
-                    .filter(|&l| votes[l as usize] == most)
-                    .nth((bx + by) as usize % tied)
-                    .expect("a tied label");
-                data.push(label);
-            }
-        }
+            });
         LabelMask {
-            width: w,
-            height: h,
+            width: w as u32,
+            height: h as u32,
             data,
         }
     }

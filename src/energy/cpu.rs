@@ -14,6 +14,7 @@ use super::clusters::{self, Cluster};
 use super::edge_terms::label_terms;
 use super::edge_terms::{EdgeQuery, EdgeTerm};
 use super::histogram;
+use super::pyramid;
 use super::raster::{self, Bounds, CLASS_BODY, CLASS_BOI, Placed, Target};
 use super::relevance::{LabelledTiles, Relevance};
 use super::{Counts, Energy, EnergyEngine, MaskTotals, Region, Scene, frame_totals};
@@ -27,6 +28,9 @@ use crate::mesh::Mesh;
 /// A frame's mask for one camera with its per-arch pixel totals.
 struct PreparedMask {
     mask: LabelMask,
+    /// The mask at the pyramid's coarser levels (1 to [`pyramid::MAX_LEVEL`]), for the edge
+    /// terms of coarse stages.
+    coarser: Vec<LabelMask>,
     /// Per scored arch (upper, lower): see `mask_totals`.
     totals: PerArch<MaskTotals>,
     /// Where either arch's or the mouth's label is (for [`Region::Relevant`]).
@@ -258,7 +262,13 @@ impl EnergyEngine for CpuEnergy {
         let masks: Vec<Option<&LabelMask>> = q
             .cameras
             .iter()
-            .map(|&k| self.frame.get(k).and_then(|f| f.as_ref()).map(|f| &f.mask))
+            .map(|&k| {
+                let f = self.frame.get(k).and_then(|f| f.as_ref())?;
+                match q.params.level {
+                    0 => Some(&f.mask),
+                    l => f.coarser.get(l - 1),
+                }
+            })
             .collect();
         Ok(label_terms(q.samples, &masks, &q.moved, &q.params))
     }
@@ -272,6 +282,9 @@ impl EnergyEngine for CpuEnergy {
                     totals: frame_totals(mask),
                     // Body faces matter over the mouth interior too (over-mouth).
                     tiles: LabelledTiles::new(mask, UPPER_BIT | LOWER_BIT | MOUTH_BIT),
+                    coarser: (1..=pyramid::MAX_LEVEL)
+                        .map(|l| pyramid::mask(mask, l))
+                        .collect(),
                     mask: mask.clone(),
                 })
             })

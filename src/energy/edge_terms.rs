@@ -45,6 +45,9 @@ pub struct EdgeParams {
     pub smoothing_px: f64,
     /// λ, and the cross-label and over-mouth weights of the pixels past a silhouette.
     pub weights: Weights,
+    /// The level of the masks' pyramid ([`super::pyramid`]) the samples were drawn at and the
+    /// masks are read at: 0, the masks themselves; reach and smoothing are in its pixels.
+    pub level: usize,
 }
 
 /// A sample's term.

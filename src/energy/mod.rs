@@ -14,6 +14,7 @@ pub mod gpu;
 pub mod hand_counted;
 pub mod histogram;
 pub mod lens;
+pub mod pyramid;
 pub mod raster;
 pub mod relevance;
 pub mod smooth;

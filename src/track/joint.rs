@@ -27,6 +27,7 @@ use crate::arch::ArchPoses;
 use crate::energy::Weights;
 use crate::energy::contour::ContourEdges;
 use crate::energy::edge_terms::{EdgeParams, EdgeSample, EdgeTerm};
+use crate::energy::pyramid;
 use crate::energy::smooth::{Matrix12, Vector12, normal_equations, samples};
 use crate::error::Result;
 use crate::geometry::{Camera, Pose, hat};
@@ -132,13 +133,24 @@ pub fn align_both(
     let mut steps = 0;
     let mut found = [0; 2];
     let mut information = Matrix12::zeros();
-    for &reach in &s.reaches_px {
+    let coarse: Vec<Camera> = cameras.iter().map(|c| pyramid::camera(c, 1)).collect();
+    for (stage, &reach) in s.reaches_px.iter().enumerate() {
         let at = poses;
-        let frozen = samples(arches, &at, cameras, apart, s.spacing_px);
+        // A coarse stage draws and reads at the pyramid's half resolution; its reach and
+        // smoothing are the settings' over its own pixels, and its terms' weights grow by the
+        // square of its pixel, so that its least squares are the same sums in the masks' pixels.
+        let level = usize::from(stage < s.coarse_stages);
+        let scale = f64::from(pyramid::factor(level));
+        let views: Vec<&Camera> = match level {
+            0 => cameras.to_vec(),
+            _ => coarse.iter().collect(),
+        };
+        let frozen = samples(arches, &at, &views, apart, s.spacing_px);
         let params = EdgeParams {
-            reach_px: reach,
-            smoothing_px: s.smoothing_px,
+            reach_px: reach / scale,
+            smoothing_px: s.smoothing_px / scale,
             weights: *weights,
+            level,
         };
         for _ in 0..s.steps {
             // Each arch's world increment since the stage's linearisation point.
@@ -146,7 +158,17 @@ pub fn align_both(
                 poses.upper.compose(&at.upper.inverse()).log(),
                 poses.lower.compose(&at.lower.inverse()).log(),
             ];
-            let sums = normal_equations(&frozen, &terms(&frozen, &moved, &params)?);
+            let found_terms: Vec<Option<EdgeTerm>> = terms(&frozen, &moved, &params)?
+                .into_iter()
+                .map(|t| {
+                    t.map(|t| EdgeTerm {
+                        weight: t.weight * scale * scale,
+                        energy: t.energy * scale * scale,
+                        ..t
+                    })
+                })
+                .collect();
+            let sums = normal_equations(&frozen, &found_terms);
             let (mut h, mut g) = (sums.h, sums.g);
             found = sums.found;
             information = h;
@@ -238,6 +260,7 @@ pub fn information_at(
         reach_px: s.reaches_px.last().copied().unwrap_or(1.0),
         smoothing_px: s.smoothing_px,
         weights: *weights,
+        level: 0,
     };
     let still = [Vector6::zeros(); 2];
     Ok(normal_equations(&frozen, &terms(&frozen, &still, &params)?).h)
@@ -248,6 +271,7 @@ mod tests {
     use nalgebra::Vector2;
 
     use super::*;
+    use crate::capture::LabelMask;
     use crate::energy::contour::bilinear;
     use crate::energy::edge_terms::{EdgeReads, terms};
     use crate::energy::smooth::tests::{TwoArches, two_arches};
@@ -262,26 +286,48 @@ mod tests {
             cameras,
             masks,
         } = two_arches(open);
-        type MaskRead<'a> = Box<dyn Fn(Vector2<f64>) -> f64 + Sync + 'a>;
-        let reads: Vec<[MaskRead; 2]> = masks
-            .iter()
-            .map(|m| {
-                [1u8, 2].map(|k| {
-                    Box::new(move |x: Vector2<f64>| bilinear(m, 640, 480, |c| c == k, x))
-                        as MaskRead
-                })
+        // Each level of the pyramid's masks (labels 1 and 2: the arches' bits).
+        let levels: Vec<Vec<LabelMask>> = (0..=pyramid::MAX_LEVEL)
+            .map(|level| {
+                let m = |data: &Vec<u8>| LabelMask {
+                    width: 640,
+                    height: 480,
+                    data: data.clone(),
+                };
+                masks.iter().map(|d| pyramid::mask(&m(d), level)).collect()
             })
             .collect();
-        let views: Vec<EdgeReads> = reads
+        type MaskRead<'a> = Box<dyn Fn(Vector2<f64>) -> f64 + Sync + 'a>;
+        let reads: Vec<Vec<[MaskRead; 2]>> = levels
             .iter()
-            .map(|read| EdgeReads {
-                masks: [read[0].as_ref(), read[1].as_ref()],
-                extra: [None, None],
+            .map(|masks| {
+                masks
+                    .iter()
+                    .map(|m| {
+                        [1u8, 2].map(|k| {
+                            let (w, h) = (m.width as usize, m.height as usize);
+                            Box::new(move |x: Vector2<f64>| bilinear(&m.data, w, h, |c| c == k, x))
+                                as MaskRead
+                        })
+                    })
+                    .collect()
+            })
+            .collect();
+        let views: Vec<Vec<EdgeReads>> = reads
+            .iter()
+            .map(|level| {
+                level
+                    .iter()
+                    .map(|read| EdgeReads {
+                        masks: [read[0].as_ref(), read[1].as_ref()],
+                        extra: [None, None],
+                    })
+                    .collect()
             })
             .collect();
         let cameras: Vec<&Camera> = cameras.iter().collect();
         let cpu = |samples: &[EdgeSample], moved: &[Vector6<f64>; 2], p: &EdgeParams| {
-            Ok(terms(samples, &views, moved, p))
+            Ok(terms(samples, &views[p.level], moved, p))
         };
         let start_upper = Pose::exp(&offset).compose(&truth.upper);
         let start = ArchPoses {

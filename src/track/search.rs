@@ -80,9 +80,14 @@ pub struct GaussNewtonSettings {
     /// How far (pixels) each silhouette sample looks for its mask's edge, one entry per
     /// stage, coarse to fine; each stage draws the arches once per camera.
     pub reaches_px: Vec<f64>,
+    /// The first this many stages draw the arches and read the masks at half their
+    /// resolution (the next level of the masks' pyramid, `energy::pyramid`): fewer samples,
+    /// shorter searches and a quarter of the drawing, where the reach is long and a pixel's
+    /// precision is not needed yet.
+    pub coarse_stages: usize,
     /// Gauss-Newton steps per stage (fewer when a step moves nothing).
     pub steps: usize,
-    /// Silhouette sample spacing (pixels).
+    /// Silhouette sample spacing (pixels of the stage's level).
     pub spacing_px: f64,
     /// The smoothing width ε (pixels): offsets below it are weighed as squares, above it as
     /// the pixel counts they stand for.
@@ -118,6 +123,7 @@ impl Default for GaussNewtonSettings {
     fn default() -> Self {
         GaussNewtonSettings {
             reaches_px: vec![8.0, 4.0, 3.0],
+            coarse_stages: 1,
             steps: 2,
             spacing_px: 2.0,
             smoothing_px: 0.5,
@@ -141,6 +147,12 @@ impl GaussNewtonSettings {
         for (k, &reach) in self.reaches_px.iter().enumerate() {
             rules.number(&format!("reaches_px[{k}]"), reach, 0.5, 64.0)?;
         }
+        rules.count(
+            "coarse_stages",
+            self.coarse_stages as u64,
+            0,
+            self.reaches_px.len() as u64,
+        )?;
         rules.count("steps", self.steps as u64, 1, 100)?;
         rules.number("spacing_px", self.spacing_px, 0.25, 64.0)?;
         rules.above("smoothing_px", self.smoothing_px, 0.0, 64.0)?;

@@ -239,6 +239,7 @@ fn time_edge_terms(
                 cross: 1.0,
                 mouth: 1.0,
             },
+            level: 0,
         },
     };
     let mut timed: Vec<&str> = Vec::new();

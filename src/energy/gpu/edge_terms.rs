@@ -261,9 +261,15 @@ impl GpuEnergy {
             .cameras
             .iter()
             .map(|&k| {
-                let (width, height) = self.mask_sizes.get(k).copied().flatten().unwrap_or((0, 0));
+                let layer = q.params.level * self.frame.len() + k;
+                let (width, height) = self
+                    .mask_sizes
+                    .get(layer)
+                    .copied()
+                    .flatten()
+                    .unwrap_or((0, 0));
                 ViewRecord {
-                    layer: k as u32,
+                    layer: layer as u32,
                     width,
                     height,
                     _pad: 0,

@@ -30,13 +30,14 @@ use readback::ReadbackTarget;
 
 use super::edge_terms::{EdgeQuery, EdgeTerm};
 use super::lens::Lens;
+use super::pyramid;
 use super::raster::{self, Rect};
 use super::{
     BINS, Counts, Energy, EnergyEngine, MaskTotals, Region, Scene, counts_with_outside,
     frame_totals,
 };
 use crate::arch::{Arch, ArchPoses, PerArch};
-use crate::capture::FrameMasks;
+use crate::capture::{FrameMasks, LabelMask};
 use crate::error::Result;
 use crate::geometry::Camera;
 
@@ -65,7 +66,8 @@ pub struct GpuEnergy {
     /// Per camera: the frame's mask totals per scored arch (upper, lower; see
     /// `mask_totals`), or `None` without a mask.
     frame: Vec<Option<PerArch<MaskTotals>>>,
-    /// Per camera: the frame's mask size, or `None` without a mask.
+    /// Per layer of `masks` (a camera at a level of the pyramid): the frame's mask size, or
+    /// `None` without a mask.
     mask_sizes: Vec<Option<(u32, u32)>>,
     batch: Mutex<Option<Batch>>,
     /// The smooth energy's edge terms (shaders/edge_terms.wgsl).
@@ -142,7 +144,9 @@ impl GpuEnergy {
             (PAGE, PAGE, 1),
         );
         let depth = texture("depth atlas", DEPTH_FORMAT, attachment, (PAGE, PAGE, 1));
-        let layers = scene.cameras.len().max(1) as u32;
+        // Each camera's mask at every level of the pyramid: level l of camera k in layer
+        // l·n + k, so that the counts read the masks themselves in layers 0..n.
+        let layers = (scene.cameras.len().max(1) * (pyramid::MAX_LEVEL + 1)) as u32;
         let masks = texture(
             "masks",
             wgpu::TextureFormat::R8Uint,
@@ -160,7 +164,7 @@ impl GpuEnergy {
         Ok(GpuEnergy {
             readback,
             frame: vec![None; scene.cameras.len()],
-            mask_sizes: vec![None; scene.cameras.len()],
+            mask_sizes: vec![None; scene.cameras.len() * (pyramid::MAX_LEVEL + 1)],
             edges: EdgeStage::new(device),
             class_view: class.create_view(&Default::default()),
             depth_view: depth.create_view(&Default::default()),
@@ -202,6 +206,33 @@ struct Tile {
 }
 
 impl GpuEnergy {
+    /// Upload a mask into its layer of the masks texture.
+    fn write_mask(&self, layer: usize, m: &LabelMask) {
+        self.ctx.queue.write_texture(
+            wgpu::TexelCopyTextureInfo {
+                texture: &self.masks,
+                mip_level: 0,
+                origin: wgpu::Origin3d {
+                    x: 0,
+                    y: 0,
+                    z: layer as u32,
+                },
+                aspect: wgpu::TextureAspect::All,
+            },
+            &m.data,
+            wgpu::TexelCopyBufferLayout {
+                offset: 0,
+                bytes_per_row: Some(m.width),
+                rows_per_image: Some(m.height),
+            },
+            wgpu::Extent3d {
+                width: m.width,
+                height: m.height,
+                depth_or_array_layers: 1,
+            },
+        );
+    }
+
     /// The image region a tile must cover for a candidate (see [`Region`]).
     fn tile_rect(&self, cam: &Camera, arch: Arch, poses: &ArchPoses) -> Rect {
         if self.region == Region::FullFrame {
@@ -303,33 +334,25 @@ impl EnergyEngine for GpuEnergy {
     }
 
     fn set_frame(&mut self, masks: &FrameMasks) -> Result<()> {
-        for (layer, m) in masks.masks.iter().enumerate() {
-            self.frame[layer] = m.as_ref().map(frame_totals);
-            self.mask_sizes[layer] = m.as_ref().map(|m| (m.width, m.height));
-            let Some(m) = m else { continue };
-            self.ctx.queue.write_texture(
-                wgpu::TexelCopyTextureInfo {
-                    texture: &self.masks,
-                    mip_level: 0,
-                    origin: wgpu::Origin3d {
-                        x: 0,
-                        y: 0,
-                        z: layer as u32,
-                    },
-                    aspect: wgpu::TextureAspect::All,
-                },
-                &m.data,
-                wgpu::TexelCopyBufferLayout {
-                    offset: 0,
-                    bytes_per_row: Some(m.width),
-                    rows_per_image: Some(m.height),
-                },
-                wgpu::Extent3d {
-                    width: m.width,
-                    height: m.height,
-                    depth_or_array_layers: 1,
-                },
-            );
+        let n = self.frame.len();
+        for (k, m) in masks.masks.iter().enumerate() {
+            self.frame[k] = m.as_ref().map(frame_totals);
+            for level in 0..=pyramid::MAX_LEVEL {
+                let layer = level * n + k;
+                let Some(m) = m else {
+                    self.mask_sizes[layer] = None;
+                    continue;
+                };
+                let reduced;
+                let m = if level == 0 {
+                    m
+                } else {
+                    reduced = pyramid::mask(m, level);
+                    &reduced
+                };
+                self.mask_sizes[layer] = Some((m.width, m.height));
+                self.write_mask(layer, m);
+            }
         }
         Ok(())
     }

@@ -120,6 +120,7 @@ impl Fixture {
                 reach_px,
                 smoothing_px,
                 weights: Weights::paper(0.4),
+                level: 0,
             },
         };
         normal_equations(samples, &self.engine.edge_terms(&q).unwrap())
@@ -221,6 +222,7 @@ fn the_gradient_is_the_smooth_energy_s_derivative() {
             reach_px: 4.0,
             smoothing_px: 0.5,
             weights: Weights::paper(0.4),
+            level: 0,
         },
     };
     let (analytic, differences) = gradient_and_differences(&f.engine, &q).unwrap();
