@@ -1,14 +1,18 @@
 //! The energy's floor: how close to the truth the energy's own minimum lies. A long, fine
-//! search from the true poses finds it; a tracked frame is then told apart from the floor by
+//! search from the true poses finds it (and Gauss-Newton's steps from there, the smooth
+//! energy's); a tracked frame is then told apart from the floor by
 //! its error and by its objective (higher: the search stopped short; the same: the energy
 //! cannot tell the poses apart).
 
+use super::joint::align_both;
+use super::joint_frame::{with_hinges, with_views};
 use super::penalties::Penalties;
 use super::prior::centre;
-use super::search::{ArchSearch, SearchSettings, search};
+use super::search::{ArchSearch, GaussNewtonSettings, SearchSettings, search};
 use crate::anatomy::MeshMetric;
 use crate::arch::{Arch, ArchPoses};
-use crate::capture::Capture;
+use crate::capture::{Capture, FrameMasks, MaskMode};
+use crate::energy::contour::ContourEdges;
 use crate::energy::{EnergyEngine, Weights};
 use crate::error::Result;
 use crate::stats::Stats;
@@ -69,29 +73,70 @@ pub fn floor_poses(
     Ok(poses)
 }
 
+/// The floor of what Gauss-Newton minimises (the smooth energy, `energy::smooth`, with the
+/// run's `penalties` as residuals): its steps from the true poses, at the finest reach of
+/// `gn`, until they settle, without the motion prior (which holds a frame where the last one
+/// left it). `engine` holds the frame's `masks`.
+pub fn smooth_floor_poses(
+    capture: &Capture,
+    engine: &dyn EnergyEngine,
+    masks: &FrameMasks,
+    truth: &ArchPoses,
+    (weights, gn): (&Weights, &GaussNewtonSettings),
+    penalties: &Penalties,
+) -> Result<ArchPoses> {
+    let finest = gn.reaches_px.last().copied().unwrap_or(3.0);
+    let settings = GaussNewtonSettings {
+        reaches_px: vec![finest; 5],
+        coarse_stages: 0,
+        steps: 4,
+        motion_prior: 0.0,
+        ..gn.clone()
+    };
+    let edges = [
+        ContourEdges::of(capture.upper()),
+        ContourEdges::of(capture.lower()),
+    ];
+    let arches = [(capture.upper(), &edges[0]), (capture.lower(), &edges[1])];
+    let apart = matches!(capture.mask_mode(), MaskMode::PerArch { .. });
+    let found = with_hinges(penalties, gn, |hinges| {
+        with_views(capture, engine, masks, |views| {
+            align_both(arches, *truth, views, apart, hinges, weights, &settings)
+        })
+    })?;
+    Ok(found.poses)
+}
+
 /// One tracked frame against the floor.
 #[derive(Debug, Clone, Copy)]
 pub struct FloorCheck {
     /// The floor's jaw error (mm, mean vertex error on the lower arch).
     pub jaw_mm: f64,
+    /// The smooth energy's floor's jaw error (mm; [`smooth_floor_poses`]).
+    pub smooth_jaw_mm: f64,
     /// The objective of both arches, tracked and at the floor.
     pub tracked: f64,
     pub floor: f64,
 }
 
 impl FloorCheck {
-    /// `tracked` against the floor of `truth`; `engine` holds the frame's masks.
+    /// `tracked` against the floors of `truth`; `engine` holds the frame's `masks`, and
+    /// `penalties` are the run's.
     pub fn of(
         capture: &Capture,
         engine: &dyn EnergyEngine,
-        frame: u32,
+        masks: &FrameMasks,
         (truth, tracked): (&ArchPoses, &ArchPoses),
-        weights: &Weights,
+        (search, penalties): (&SearchSettings, &Penalties),
     ) -> Result<FloorCheck> {
-        let floor = floor_poses(capture, engine, truth, frame, weights)?;
+        let weights = &search.weights();
+        let floor = floor_poses(capture, engine, truth, masks.frame, weights)?;
+        let gn = (weights, &search.gauss_newton);
+        let smooth = smooth_floor_poses(capture, engine, masks, truth, gn, penalties)?;
         let metric = MeshMetric::new(capture.lower());
         Ok(FloorCheck {
             jaw_mm: metric.mean_distance(&floor.jaw(), &truth.jaw()),
+            smooth_jaw_mm: metric.mean_distance(&smooth.jaw(), &truth.jaw()),
             tracked: objective_sum(engine, tracked, weights)?,
             floor: objective_sum(engine, &floor, weights)?,
         })
@@ -108,6 +153,7 @@ pub struct FloorTally {
     /// Per frame: the mean vertex error (mm) of the upper arch, the lower and the jaw.
     errors: [Vec<f64>; 3],
     floors: Vec<f64>,
+    smooth_floors: Vec<f64>,
     ratios: Vec<f64>,
     shortfalls: usize,
     /// Per capture, the median area error (%) of the upper and the lower arch.
@@ -133,6 +179,8 @@ pub struct FloorSummary {
     pub lower_error_mm: [f64; 2],
     /// The error of E's minimum found from the truth (jaw; median, 95th percentile).
     pub jaw_floor_mm: [f64; 2],
+    /// The same of the smooth energy's minimum ([`smooth_floor_poses`]).
+    pub jaw_smooth_floor_mm: [f64; 2],
     /// Median over frames of tracked error / floor (jaw; floors under 0.01 mm count as 0.01).
     pub median_ratio_to_floor: f64,
     /// Share of frames whose tracked poses have a higher objective than the floor's.
@@ -148,6 +196,7 @@ impl FloorTally {
         }
         if let Some(f) = floor {
             self.floors.push(f.jaw_mm);
+            self.smooth_floors.push(f.smooth_jaw_mm);
             self.ratios.push(errors[2] / f.jaw_mm.max(0.01));
             self.shortfalls += f.stopped_short() as usize;
         }
@@ -178,6 +227,7 @@ impl FloorTally {
             upper_error_mm: two(&self.errors[0]),
             lower_error_mm: two(&self.errors[1]),
             jaw_floor_mm: two(&self.floors).map(floor_or_nan),
+            jaw_smooth_floor_mm: two(&self.smooth_floors).map(floor_or_nan),
             median_ratio_to_floor: floor_or_nan(Stats::of(&self.ratios).median),
             search_shortfall: floor_or_nan(
                 self.shortfalls as f64 / self.errors[2].len().max(1) as f64,

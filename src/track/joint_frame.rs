@@ -8,7 +8,7 @@ use super::align::FrameReads;
 use super::joint::{JawHinge, Terms, align_both, information_at};
 use super::penalties::Penalties;
 use super::prior::JawPrior;
-use super::search::SearchSettings;
+use super::search::{GaussNewtonSettings, SearchSettings};
 use crate::arch::{Arch, ArchPoses};
 use crate::capture::{Capture, FrameMasks, MaskMode};
 use crate::energy::contour::ContourEdges;
@@ -55,26 +55,13 @@ impl JointFrame<'_> {
         matches!(self.capture.mask_mode(), MaskMode::PerArch { .. })
     }
 
-    /// `f` given the cameras that have masks this frame and the engine's edge terms over
-    /// them.
     fn with_views<T>(
         &self,
         engine: &dyn EnergyEngine,
         masks: &FrameMasks,
         f: impl FnOnce((&[&Camera], Terms)) -> T,
     ) -> T {
-        let reads = FrameReads::new(self.capture, masks);
-        let cameras: Vec<&Camera> = (0..reads.len()).map(|k| reads.camera(k)).collect();
-        let indices: Vec<usize> = (0..reads.len()).map(|k| reads.index(k)).collect();
-        let terms = |samples: &[EdgeSample], moved: &[Vector6<f64>; 2], params: &EdgeParams| {
-            engine.edge_terms(&EdgeQuery {
-                samples,
-                cameras: &indices,
-                moved: *moved,
-                params: *params,
-            })
-        };
-        f((&cameras, &terms))
+        with_views(self.capture, engine, masks, f)
     }
 
     /// The information the masks give about `poses`: for a frame another search found, so
@@ -157,35 +144,18 @@ impl JointFrame<'_> {
                 .expect("options");
             start = *best;
         }
-        let contact = self.penalties.contact.as_ref();
-        let manifold = self.penalties.manifold.as_ref();
-        let depth = |jaw: &Pose| contact.map_or(0.0, |c| c.depth(jaw));
-        let off = |jaw: &Pose| manifold.map_or(0.0, |m| m.distance_mm(jaw));
-        let mut hinges = Vec::new();
-        if let Some(c) = contact.filter(|_| gn.contact_stiffness > 0.0) {
-            hinges.push(JawHinge {
-                distance_mm: &depth,
-                tolerance_mm: c.tolerance_mm(),
-                stiffness: gn.contact_stiffness,
-            });
-        }
-        if let Some(m) = manifold.filter(|_| gn.manifold_stiffness > 0.0) {
-            hinges.push(JawHinge {
-                distance_mm: &off,
-                tolerance_mm: m.tolerance_mm(),
-                stiffness: gn.manifold_stiffness,
-            });
-        }
-        let found = self.with_views(engine, masks, |views| {
-            align_both(
-                self.arches(),
-                start,
-                views,
-                self.apart(),
-                &hinges,
-                &weights,
-                gn,
-            )
+        let found = with_hinges(self.penalties, gn, |hinges| {
+            self.with_views(engine, masks, |views| {
+                align_both(
+                    self.arches(),
+                    start,
+                    views,
+                    self.apart(),
+                    hinges,
+                    &weights,
+                    gn,
+                )
+            })
         })?;
         let (found, steps, information) = (found.poses, found.steps, found.information);
         // The result, each arch's result with the other's start, and the start: where the
@@ -248,4 +218,55 @@ impl Known<'_> {
             .map(|c| find(&self.energies, c).expect("evaluated"))
             .collect())
     }
+}
+
+/// `f` given the penalties' anatomy as Gauss-Newton's residuals in the jaw pose (their
+/// stiffnesses `gn`'s; a stiffness of 0 leaves one out).
+pub fn with_hinges<T>(
+    penalties: &Penalties,
+    gn: &GaussNewtonSettings,
+    f: impl FnOnce(&[JawHinge]) -> T,
+) -> T {
+    let contact = penalties.contact.as_ref();
+    let manifold = penalties.manifold.as_ref();
+    let depth = |jaw: &Pose| contact.map_or(0.0, |c| c.depth(jaw));
+    let off = |jaw: &Pose| manifold.map_or(0.0, |m| m.distance_mm(jaw));
+    let mut hinges = Vec::new();
+    if let Some(c) = contact.filter(|_| gn.contact_stiffness > 0.0) {
+        hinges.push(JawHinge {
+            distance_mm: &depth,
+            tolerance_mm: c.tolerance_mm(),
+            stiffness: gn.contact_stiffness,
+        });
+    }
+    if let Some(m) = manifold.filter(|_| gn.manifold_stiffness > 0.0) {
+        hinges.push(JawHinge {
+            distance_mm: &off,
+            tolerance_mm: m.tolerance_mm(),
+            stiffness: gn.manifold_stiffness,
+        });
+    }
+    f(&hinges)
+}
+
+/// `f` given the cameras that have masks this frame and `engine`'s edge terms over them (the
+/// engine holds the frame's masks).
+pub fn with_views<T>(
+    capture: &Capture,
+    engine: &dyn EnergyEngine,
+    masks: &FrameMasks,
+    f: impl FnOnce((&[&Camera], Terms)) -> T,
+) -> T {
+    let reads = FrameReads::new(capture, masks);
+    let cameras: Vec<&Camera> = (0..reads.len()).map(|k| reads.camera(k)).collect();
+    let indices: Vec<usize> = (0..reads.len()).map(|k| reads.index(k)).collect();
+    let terms = |samples: &[EdgeSample], moved: &[Vector6<f64>; 2], params: &EdgeParams| {
+        engine.edge_terms(&EdgeQuery {
+            samples,
+            cameras: &indices,
+            moved: *moved,
+            params: *params,
+        })
+    };
+    f((&cameras, &terms))
 }

@@ -9,12 +9,10 @@ use std::time::Instant;
 use nalgebra::Vector3;
 
 use super::align::{ArchAlign, align_arch};
-use super::contact::{Contact, ContactSettings};
 use super::joint_frame::JointFrame;
 use super::locate::relocate;
-use super::manifold::JawManifold;
 use super::mask_source::{MaskSource, with_second_look};
-use super::penalties::Penalties;
+use super::penalties::{Penalties, prior_and_penalties};
 use super::prior::{JawPrior, centre};
 use super::search::{ArchSearch, Found, RADIUS_MM, Solver, search};
 use super::settings::TrackSettings;
@@ -60,51 +58,7 @@ pub fn track_frames(
 ) -> Result<()> {
     let settings = settings.for_capture(capture);
     let centres = [centre(capture, Arch::Upper), centre(capture, Arch::Lower)];
-    // The prior serves both mask modes: with combined masks a lower-arch start could win by
-    // covering the upper arch's pixels, which the contact penalty forbids (docs/tracking.md).
-    // Which side of each arch the other is on comes from the poses tracking starts from.
-    let prior = match &settings.jaw_space {
-        Some(space) => JawPrior::of_poses(
-            &space.poses,
-            settings.jaw_prior_grid.iter().product(),
-            settings.jaw_prior_nearest,
-            centres[1],
-        ),
-        None => JawPrior::new(
-            capture.upper(),
-            capture.lower(),
-            &state.start.jaw(),
-            settings.jaw_prior_grid,
-            settings.jaw_prior_fine_grid,
-            settings.jaw_prior_nearest,
-            centres[1],
-        ),
-    };
-    let contact = (settings.contact_weight > 0.0).then(|| {
-        Contact::new(
-            capture.upper(),
-            capture.lower(),
-            &state.start.jaw(),
-            ContactSettings {
-                weight: settings.contact_weight,
-                tolerance_mm: settings.contact_tolerance_mm,
-            },
-        )
-    });
-    let per_arch = matches!(capture.mask_mode(), MaskMode::PerArch { .. });
-    let manifold =
-        (per_arch && settings.jaw_manifold_weight > 0.0 && prior.fine.len() >= 4).then(|| {
-            let new = match settings.jaw_space {
-                Some(_) => JawManifold::sampled,
-                None => JawManifold::new,
-            };
-            new(
-                &prior.fine,
-                capture.lower(),
-                settings.jaw_manifold_weight,
-                settings.jaw_manifold_tolerance_mm,
-            )
-        });
+    let (prior, penalties) = prior_and_penalties(capture, &settings, &state.start);
     // The solvers that align outlines, the window (which weighs each frame by what its edges
     // say) and the fresh look for a lost frame all read the arches' contour edges.
     let edges = [
@@ -116,7 +70,7 @@ pub fn track_frames(
         settings,
         centres,
         prior,
-        penalties: Penalties { contact, manifold },
+        penalties,
         edges,
     };
     let mut step = |frame: u32, masks: FrameMasks, started: Instant, state: &mut TrackState| {

@@ -5,9 +5,10 @@ use std::path::{Path, PathBuf};
 use anyhow::Context;
 use jawtrack::arch::ArchPoses;
 use jawtrack::capture::Capture;
-use jawtrack::energy::{Region, Scene, Weights};
+use jawtrack::energy::{Region, Scene};
 use jawtrack::synth::{SynthOptions, generate};
 use jawtrack::track::floor::{FloorCheck, FloorSummary, FloorTally};
+use jawtrack::track::penalties::prior_and_penalties;
 use jawtrack::track::{SessionOptions, Summary, TrackSettings};
 
 use crate::cli::args::{EnergyArg, JointArg, MaskKindArg, PresetArg, name_of};
@@ -98,18 +99,15 @@ struct Bench<'a> {
     args: &'a TrackArgs,
     tmp: &'a Path,
     settings: &'a TrackSettings,
-    weights: &'a Weights,
 }
 
 pub fn track(a: TrackArgs) -> anyhow::Result<()> {
     let tmp = tempfile::tempdir()?;
     let settings = crate::cli::args::track_settings(a.settings.as_deref(), a.energy, a.search)?;
-    let weights = settings.search.weights();
     let bench = Bench {
         args: &a,
         tmp: tmp.path(),
         settings: &settings,
-        weights: &weights,
     };
     let mut rows = Vec::new();
     for (preset, label) in a
@@ -164,6 +162,9 @@ fn measure_capture(
         a.engine.region.map_or(Region::Relevant, Into::into),
     )?;
     let mut engine = opened.engine;
+    // The run's prior and penalties, for the smooth energy's floor.
+    let settings = b.settings.for_capture(&capture);
+    let (_, penalties) = prior_and_penalties(&capture, &settings, &capture.initial_poses()?);
     let tracked: std::collections::HashMap<u32, ArchPoses> = summary
         .records
         .iter()
@@ -183,13 +184,13 @@ fn measure_capture(
         let f = FloorCheck::of(
             &capture,
             engine.as_ref(),
-            *frame,
+            &masks,
             (&truth, &tracked[frame]),
-            b.weights,
+            (&settings.search, &penalties),
         )?;
         tally.frame(*err, Some(f));
         eprintln!(
-            "{} {} seed {seed} frame {frame}: jaw {:.3} mm, floor {:.3} mm; E tracked {:.0}, at the floor {:.0}",
+            "{} {} seed {seed} frame {frame}: jaw {:.3} mm, floor {:.3} mm (smooth {:.3}); E tracked {:.0}, at the floor {:.0}",
             name_of(preset),
             if capture.mouth().is_some() {
                 "labelled"
@@ -198,6 +199,7 @@ fn measure_capture(
             },
             err[2],
             f.jaw_mm,
+            f.smooth_jaw_mm,
             f.tracked,
             f.floor
         );
@@ -267,10 +269,10 @@ fn track_capture(
 /// Prints the rows as a table: errors as median / 95th percentile, against the energy's floor.
 fn print_table(rows: &[TrackRow]) {
     println!(
-        "mean vertex error in mm (median / 95th percentile); floor = error of E's minimum found from the truth"
+        "mean vertex error in mm (median / 95th percentile); floor = error of E's minimum found from the truth, smooth = of the smooth energy's (Gauss-Newton's)"
     );
     println!(
-        "{:<10} {:<8} {:<5} {:>6} {:>8} {:>7} {:>6} {:>13} {:>13} {:>13} {:>13} {:>11} {:>9} {:>13}",
+        "{:<10} {:<8} {:<5} {:>6} {:>8} {:>7} {:>6} {:>13} {:>13} {:>13} {:>13} {:>13} {:>11} {:>9} {:>13}",
         "preset",
         "masks",
         "mouth",
@@ -282,6 +284,7 @@ fn print_table(rows: &[TrackRow]) {
         "upper",
         "lower",
         "jaw floor",
+        "smooth floor",
         "ratio",
         "shortfall",
         "area err %"
@@ -289,7 +292,7 @@ fn print_table(rows: &[TrackRow]) {
     for row in rows {
         let r = &row.summary;
         println!(
-            "{:<10} {:<8} {:<5} {:>6} {:>8.2} {:>7.0} {:>6.1} {:>6.3}/{:<6.3} {:>6.3}/{:<6.3} {:>6.3}/{:<6.3} {:>6.3}/{:<6.3} {:>11.2} {:>9.2} {:>6.2}/{:<6.2}",
+            "{:<10} {:<8} {:<5} {:>6} {:>8.2} {:>7.0} {:>6.1} {:>6.3}/{:<6.3} {:>6.3}/{:<6.3} {:>6.3}/{:<6.3} {:>6.3}/{:<6.3} {:>6.3}/{:<6.3} {:>11.2} {:>9.2} {:>6.2}/{:<6.2}",
             row.preset,
             row.masks,
             if row.mouth_label { "yes" } else { "no" },
@@ -305,6 +308,8 @@ fn print_table(rows: &[TrackRow]) {
             r.lower_error_mm[1],
             r.jaw_floor_mm[0],
             r.jaw_floor_mm[1],
+            r.jaw_smooth_floor_mm[0],
+            r.jaw_smooth_floor_mm[1],
             r.median_ratio_to_floor,
             r.search_shortfall,
             r.area_error_percent_median[0],
