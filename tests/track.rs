@@ -770,7 +770,7 @@ fn two_passes_learn_the_subjects_rig_and_track_held_to_it() {
 fn the_floors_lie_at_the_truth_on_clean_masks() {
     use jawtrack::energy::{CpuEnergy, EnergyEngine, Scene};
     use jawtrack::track::floor::FloorCheck;
-    use jawtrack::track::penalties::prior_and_penalties;
+    use jawtrack::track::prior_and_penalties;
     for (preset, pixel_mm, smooth_mm) in [(Preset::Clean, 0.04, 0.1), (Preset::Realistic, 0.5, 1.0)]
     {
         let capture = Capture::open(common::template(preset, MaskKind::PerArch)).unwrap();

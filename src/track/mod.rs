@@ -31,7 +31,7 @@ pub mod window;
 
 pub use mask_source::MaskSource;
 pub use search::{ArchSearch, Found, GaussNewtonSettings, SearchSettings, Solver, search};
-pub use sequence::{Status, track_frames};
+pub use sequence::{Status, prior_and_penalties, track_frames};
 pub use session::{Session, SessionOptions, Summary, score_records};
 pub use settings::{JawSpace, LabelledSettings, TrackSettings};
 pub use state::{FrameResult, TrackState};

@@ -9,10 +9,12 @@ use std::time::Instant;
 use nalgebra::Vector3;
 
 use super::align::{ArchAlign, align_arch};
+use super::contact::{Contact, ContactSettings};
 use super::joint_frame::JointFrame;
 use super::locate::relocate;
+use super::manifold::JawManifold;
 use super::mask_source::{MaskSource, with_second_look};
-use super::penalties::{Penalties, prior_and_penalties};
+use super::penalties::Penalties;
 use super::prior::{JawPrior, centre};
 use super::search::{ArchSearch, Found, RADIUS_MM, Solver, search};
 use super::settings::TrackSettings;
@@ -42,6 +44,61 @@ pub fn starts(state: &TrackState) -> Vec<ArchPoses> {
     }
     starts.extend(state.since_good);
     starts
+}
+
+/// The jaw prior and the penalties of a run over `capture` (its `settings` made for it,
+/// `TrackSettings::for_capture`), fitted around `start`, the poses tracking starts from.
+pub fn prior_and_penalties(
+    capture: &Capture,
+    settings: &TrackSettings,
+    start: &ArchPoses,
+) -> (JawPrior, Penalties) {
+    // The prior serves both mask modes: with combined masks a lower-arch start could win by
+    // covering the upper arch's pixels, which the contact penalty forbids (docs/tracking.md).
+    // Which side of each arch the other is on comes from the poses tracking starts from.
+    let prior = match &settings.jaw_space {
+        Some(space) => JawPrior::of_poses(
+            &space.poses,
+            settings.jaw_prior_grid.iter().product(),
+            settings.jaw_prior_nearest,
+            centre(capture, Arch::Lower),
+        ),
+        None => JawPrior::new(
+            capture.upper(),
+            capture.lower(),
+            &start.jaw(),
+            settings.jaw_prior_grid,
+            settings.jaw_prior_fine_grid,
+            settings.jaw_prior_nearest,
+            centre(capture, Arch::Lower),
+        ),
+    };
+    let contact = (settings.contact_weight > 0.0).then(|| {
+        Contact::new(
+            capture.upper(),
+            capture.lower(),
+            &start.jaw(),
+            ContactSettings {
+                weight: settings.contact_weight,
+                tolerance_mm: settings.contact_tolerance_mm,
+            },
+        )
+    });
+    let per_arch = matches!(capture.mask_mode(), MaskMode::PerArch { .. });
+    let manifold =
+        (per_arch && settings.jaw_manifold_weight > 0.0 && prior.fine.len() >= 4).then(|| {
+            let new = match settings.jaw_space {
+                Some(_) => JawManifold::sampled,
+                None => JawManifold::new,
+            };
+            new(
+                &prior.fine,
+                capture.lower(),
+                settings.jaw_manifold_weight,
+                settings.jaw_manifold_tolerance_mm,
+            )
+        });
+    (prior, Penalties { contact, manifold })
 }
 
 /// Track `frames` in the order given (backwards too, from a frame set by hand), starting from

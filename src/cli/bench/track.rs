@@ -8,7 +8,7 @@ use jawtrack::capture::Capture;
 use jawtrack::energy::{Region, Scene};
 use jawtrack::synth::{SynthOptions, generate};
 use jawtrack::track::floor::{FloorCheck, FloorSummary, FloorTally};
-use jawtrack::track::penalties::prior_and_penalties;
+use jawtrack::track::prior_and_penalties;
 use jawtrack::track::{SessionOptions, Summary, TrackSettings};
 
 use crate::cli::args::{EnergyArg, JointArg, MaskKindArg, PresetArg, name_of};
