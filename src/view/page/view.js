@@ -785,7 +785,10 @@ function setupWorkbench(tl) {
     img.draggable = false;
     img.addEventListener("mousedown", (e) => {
       e.preventDefault();
-      wb.drag = { cam, img, x: e.clientX, y: e.clientY };
+      // Pointer pixels to the picture's own (the masks'), which the server moves the arch by,
+      // at the scale the picture had when it was grabbed: the page may lay out again while the
+      // arch moves (the frame's terms appear), and one drag would be scaled two ways.
+      wb.drag = { cam, s: img.naturalWidth / img.clientWidth, x: e.clientX, y: e.clientY };
     });
     img.addEventListener("wheel", (e) => {
       e.preventDefault();
@@ -795,9 +798,7 @@ function setupWorkbench(tl) {
   window.addEventListener("mousemove", (e) => {
     const d = wb.drag;
     if (!d) return;
-    // Pointer pixels to the picture's own (the masks'), which the server moves the arch by.
-    const s = d.img.naturalWidth / d.img.clientWidth;
-    const dx = (e.clientX - d.x) * s, dy = (e.clientY - d.y) * s;
+    const dx = (e.clientX - d.x) * d.s, dy = (e.clientY - d.y) * d.s;
     d.x = e.clientX; d.y = e.clientY;
     if (dx === 0 && dy === 0) return;
     if (e.shiftKey) queueEdit(tl, { kind: "turn", arch: editArch(), camera: d.cam, v: [0.25 * dx, 0.25 * dy] });
