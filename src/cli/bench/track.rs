@@ -162,14 +162,23 @@ fn measure_capture(
         a.engine.region.map_or(Region::Relevant, Into::into),
     )?;
     let mut engine = opened.engine;
-    // The run's prior and penalties, for the smooth energy's floor.
-    let settings = b.settings.for_capture(&capture);
-    let (_, penalties) = prior_and_penalties(&capture, &settings, &capture.initial_poses()?);
     let tracked: std::collections::HashMap<u32, ArchPoses> = summary
         .records
         .iter()
         .map(|r| Ok((r.frame, r.poses(&out)?)))
         .collect::<anyhow::Result<_>>()?;
+    // The run's prior and penalties, for the smooth energy's floor, fitted around where the
+    // run started: init.json's poses, or (with `--no-init`) its first tracked frame's.
+    let settings = b.settings.for_capture(&capture);
+    let start = match capture.initial_poses() {
+        Ok(poses) => poses,
+        Err(_) => *summary
+            .records
+            .first()
+            .and_then(|r| tracked.get(&r.frame))
+            .context("no tracked frame to start the floor's penalties from")?,
+    };
+    let (_, penalties) = prior_and_penalties(&capture, &settings, &start);
     for (frame, err) in &report.per_frame {
         let truth = capture.gt_poses(*frame).context("ground truth")?;
         let masks = capture.load_masks(*frame)?;
