@@ -27,10 +27,11 @@ use crate::capture::masks::MOUTH_BIT;
 use crate::capture::{Capture, FrameMasks, LOWER_BIT, LabelMask, MaskMode, UPPER_BIT};
 use crate::energy::raster::render_labels;
 use crate::error::{Error, Result};
+use crate::formats::Status;
 use crate::geometry::Camera;
 use crate::io::{encode_png, write_atomic};
 use crate::track::MaskSource;
-use picture::{Models, Outcome, segment_picture};
+use picture::{Lesson, Models, Outcome, segment_picture};
 pub use settings::SegmentSettings;
 
 /// The largest picture read (pixels): a GoPro's 5.3K is 15.9 Mpx.
@@ -60,6 +61,9 @@ pub struct Segmenter<'c> {
     /// The latest frame segmented, with the colour models and counts from before it: a frame
     /// segmented again starts from those.
     before: Option<(u32, Vec<Option<Models>>, Vec<CameraCounts>)>,
+    /// Per camera, what the latest picture segmented teaches the models once its frame is
+    /// tracked.
+    lessons: Vec<Option<Lesson>>,
 }
 
 /// The size of each camera's pictures (from its first picture in the capture's frames), and
@@ -143,6 +147,7 @@ impl<'c> Segmenter<'c> {
             seconds: 0.0,
             debug: None,
             before: None,
+            lessons: vec![None; capture.cameras().len()],
         }
     }
 
@@ -154,8 +159,8 @@ impl<'c> Segmenter<'c> {
         self
     }
 
-    /// One camera's picture of `frame` segmented and its mask written; `None` where it gave
-    /// no mask.
+    /// One camera's picture of `frame` segmented and its mask written (`None` where it gave
+    /// no mask), with what it teaches the colour models once the frame is tracked.
     fn camera_mask(
         &self,
         k: usize,
@@ -163,12 +168,12 @@ impl<'c> Segmenter<'c> {
         expected: &[ArchPoses],
         models: &mut Option<Models>,
         counts: &mut CameraCounts,
-    ) -> Result<Option<LabelMask>> {
+    ) -> Result<(Option<LabelMask>, Option<Lesson>)> {
         let capture = self.capture;
         let mask_path = capture.mask_path(k, frame);
         let Some(path) = capture.image_path(k, frame) else {
             counts.no_picture += 1;
-            return remove_stale(&mask_path).map(|_| None);
+            return remove_stale(&mask_path).map(|_| (None, None));
         };
         let cam = &self.cameras[k];
         let (w, h) = image::image_dimensions(&path).map_err(|e| Error::Image {
@@ -227,15 +232,15 @@ impl<'c> Segmenter<'c> {
                 &encode_png(&posteriors, w, h, image::ExtendedColorType::Rgb8),
             )?;
         }
-        let labels = match outcome {
-            Outcome::Labels(l) => l,
+        let (labels, lesson) = match outcome {
+            Outcome::Labels(l, lesson) => (l, lesson),
             Outcome::Dark => {
                 counts.dark += 1;
-                return remove_stale(&mask_path).map(|_| None);
+                return remove_stale(&mask_path).map(|_| (None, None));
             }
             Outcome::OutOfView => {
                 counts.out_of_view += 1;
-                return remove_stale(&mask_path).map(|_| None);
+                return remove_stale(&mask_path).map(|_| (None, None));
             }
         };
         counts.segmented += 1;
@@ -253,7 +258,7 @@ impl<'c> Segmenter<'c> {
                 .map(|&v| capture.mask_mode().label_of(v, capture.mouth()))
                 .collect(),
         };
-        Ok(Some(mask.reduced(capture.mask_reduce())))
+        Ok((Some(mask.reduced(capture.mask_reduce())), lesson))
     }
 }
 
@@ -270,7 +275,7 @@ impl MaskSource for Segmenter<'_> {
         let mut models = std::mem::take(&mut self.models);
         let mut counts = std::mem::take(&mut self.counts);
         let this = &*self;
-        let masks: Vec<Result<Option<LabelMask>>> = models
+        let made: Vec<Result<(Option<LabelMask>, Option<Lesson>)>> = models
             .par_iter_mut()
             .zip(counts.par_iter_mut())
             .enumerate()
@@ -278,15 +283,45 @@ impl MaskSource for Segmenter<'_> {
             .collect();
         self.models = models;
         self.counts = counts;
+        let (masks, lessons) = made.into_iter().collect::<Result<(Vec<_>, Vec<_>)>>()?;
+        self.lessons = lessons;
         self.seconds += started.elapsed().as_secs_f64();
-        Ok(FrameMasks {
-            frame,
-            masks: masks.into_iter().collect::<Result<_>>()?,
-        })
+        Ok(FrameMasks { frame, masks })
     }
 
     fn follows_expected(&self) -> bool {
         true
+    }
+
+    /// The colour models follow the frame's pictures where their labels agree with the arches
+    /// drawn where they were tracked; a frame tracked `low-confidence` teaches nothing (its
+    /// arches may be lost, and its labels with them).
+    fn tracked(&mut self, _frame: u32, poses: &ArchPoses, status: Status) -> Result<()> {
+        let started = std::time::Instant::now();
+        let lessons = std::mem::take(&mut self.lessons);
+        if status == Status::Ok {
+            let (capture, settings) = (self.capture, &self.settings);
+            self.models
+                .par_iter_mut()
+                .zip(&self.cameras)
+                .zip(lessons)
+                .for_each(|((models, cam), lesson)| {
+                    let (Some(m), Some(lesson)) = (models.as_mut(), lesson) else {
+                        return;
+                    };
+                    let drawn = render_labels(
+                        cam,
+                        &[
+                            (capture.upper(), &poses.upper, UPPER_BIT, UPPER_BIT),
+                            (capture.lower(), &poses.lower, LOWER_BIT, LOWER_BIT),
+                        ],
+                    );
+                    lesson.follow(&drawn, cam.width as usize, m, settings);
+                });
+        }
+        self.lessons = vec![None; self.cameras.len()];
+        self.seconds += started.elapsed().as_secs_f64();
+        Ok(())
     }
 }
 

@@ -22,6 +22,12 @@ pub trait MaskSource {
     fn follows_expected(&self) -> bool {
         false
     }
+
+    /// `frame` came out at `poses` with `status`, from the masks last made for it: what a
+    /// source learns as it goes (colour models) may learn from where the arches are.
+    fn tracked(&mut self, _frame: u32, _poses: &ArchPoses, _status: Status) -> Result<()> {
+        Ok(())
+    }
 }
 
 /// Below this share of the arches' drawn pixels labelled teeth, a frame's masks show no

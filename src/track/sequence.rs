@@ -148,6 +148,7 @@ pub fn track_frames(
             };
             let (result, masks) =
                 with_second_look(capture, coarse, source, frame, &expected, state, &mut track)?;
+            source.tracked(frame, &result.poses, result.status)?;
             let result = FrameResult {
                 seconds: started.elapsed().as_secs_f64(),
                 ..result

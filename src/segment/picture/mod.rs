@@ -15,6 +15,7 @@ use super::seeds::{initial_classes, learn_interior};
 use super::settings::SegmentSettings;
 use super::smoothness::{contrast, set_pairs};
 use crate::capture::masks::MOUTH_BIT;
+pub use lesson::Lesson;
 
 /// How the teeth's colour model falls off a luma level into shade
 /// ([`ColourModel::shaded`]): the side teeth deep in an open mouth are in its shadow.
@@ -38,8 +39,10 @@ const OTHER_REACH: f32 = 3.0;
 
 /// What one picture came out as.
 pub enum Outcome {
-    /// Label bits per pixel (UPPER_BIT, LOWER_BIT, MOUTH_BIT), the whole picture.
-    Labels(Vec<u8>),
+    /// Label bits per pixel (UPPER_BIT, LOWER_BIT, MOUTH_BIT), the whole picture, and what
+    /// the picture has to teach the models once the frame is tracked (none on the picture
+    /// they were first learned from).
+    Labels(Vec<u8>, Option<Lesson>),
     /// The models project nowhere into the picture.
     OutOfView,
     /// Much darker than the colour models were learned in (the lights were off).
@@ -64,7 +67,8 @@ impl Roi {
 
 /// Segment `rgb` (`width` x `height`, 3 bytes a pixel) given `prior`, the label bits of the
 /// models drawn at the expected poses (UPPER_BIT / LOWER_BIT per pixel, 0 elsewhere).
-/// `models` are learned here when `None`, and updated after. `posteriors`, when given, gets
+/// `models` are learned here when `None`; afterwards they follow the pictures once tracking
+/// has placed the arches in them (the outcome's [`Lesson`]). `posteriors`, when given, gets
 /// the picture of what the colour models and the prior made of each pixel before the cuts
 /// ([`posterior_picture`]).
 pub fn segment_picture(
@@ -136,14 +140,10 @@ pub fn segment_picture(
     if let (Some(out), Some(m)) = (posteriors, models.as_ref()) {
         *out = posterior_picture(&likelihoods(&colours, &priors, m), roi, width, height);
     }
-    if !learning {
-        let m = models.as_mut().expect("present");
-        follow_picture(&colours, &classes, &far, roi, m, mean_luma, settings);
-    }
-    // After the models followed the picture: the gums and tongue are labelled interior, not
-    // learned as its colours (they would teach it the lips').
-    let classes = inside_the_lips(&classes, roi.w, roi.h);
-    let teeth: Vec<bool> = classes.iter().map(|&c| c == 0).collect();
+    // The gums and tongue are labelled interior, but the lesson keeps the classes as cut:
+    // they are not the interior's colours (they would teach it the lips').
+    let opened = inside_the_lips(&classes, roi.w, roi.h);
+    let teeth: Vec<bool> = opened.iter().map(|&c| c == 0).collect();
     let arches = split_arches(
         &colours,
         &teeth,
@@ -154,7 +154,15 @@ pub fn segment_picture(
         settings.smoothness as f32,
         reach,
     );
-    Outcome::Labels(picture_labels(&classes, &arches, roi, width, height))
+    let labels = picture_labels(&opened, &arches, roi, width, height);
+    let lesson = (!learning).then_some(Lesson {
+        colours,
+        classes,
+        far,
+        roi,
+        mean_luma,
+    });
+    Outcome::Labels(labels, lesson)
 }
 
 /// Spatial priors per ROI pixel (teeth, mouth interior, the rest): teeth only near the models'
@@ -214,33 +222,6 @@ fn cut_rounds(
         classes = cut(colours, priors, m, roi, beta, settings);
     }
     Some(classes)
-}
-
-/// Each class's model follows what this picture showed of it, when it showed enough; so does
-/// the lit luma.
-fn follow_picture(
-    colours: &[[u8; 3]],
-    classes: &[u8],
-    far: &[bool],
-    roi: Roi,
-    m: &mut Models,
-    mean_luma: f32,
-    settings: &SegmentSettings,
-) {
-    let edges_out = eroded(classes, roi.w, roi.h);
-    let rate = settings.learning_rate;
-    let fresh = |k: u8| learn_class(colours, &edges_out, k, settings.min_pixels);
-    if let Some(f) = fresh(0) {
-        m.teeth.update(&f.shaded(TEETH_SHADE_FALLOFF), rate);
-    }
-    // Lips and skin also from the edges, as on the first picture (`learn`).
-    if let Some(f) = learn_class(colours, &near_only(classes, far), 2, settings.min_pixels) {
-        m.other.update(&f, rate);
-    }
-    if let (Some(mouth), Some(f)) = (&mut m.mouth, fresh(1)) {
-        mouth.update(&f, rate);
-    }
-    m.lit_luma += rate * (mean_luma - m.lit_luma);
 }
 
 /// The whole picture's label bits from the ROI's classes: teeth take their arch's bit
@@ -438,5 +419,6 @@ fn cut(
         .collect()
 }
 
+mod lesson;
 #[cfg(test)]
 mod tests;

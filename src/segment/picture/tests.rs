@@ -40,7 +40,8 @@ fn teeth_and_mouth_come_out_where_the_colours_are_despite_an_offset_prior() {
         ..SegmentSettings::default()
     };
     let mut models = None;
-    let Outcome::Labels(labels) = segment_picture(&rgb, w, h, &prior, &mut models, &settings, None)
+    let Outcome::Labels(labels, _) =
+        segment_picture(&rgb, w, h, &prior, &mut models, &settings, None)
     else {
         panic!("the prior is in view and the picture is lit");
     };
@@ -120,7 +121,8 @@ fn the_mouth_interior_is_learned_once_a_picture_shows_it() {
     };
     let mut models = None;
     let (rgb, truth, prior) = mouth_picture(0);
-    let Outcome::Labels(labels) = segment_picture(&rgb, w, h, &prior, &mut models, &settings, None)
+    let Outcome::Labels(labels, _) =
+        segment_picture(&rgb, w, h, &prior, &mut models, &settings, None)
     else {
         panic!("in view and lit");
     };
@@ -129,7 +131,7 @@ fn the_mouth_interior_is_learned_once_a_picture_shows_it() {
     assert!(iou(&labels, &truth, UPPER_BIT) > 0.8);
     let (rgb, truth, prior) = mouth_picture(8);
     let mut posteriors = Vec::new();
-    let Outcome::Labels(labels) = segment_picture(
+    let Outcome::Labels(labels, _) = segment_picture(
         &rgb,
         w,
         h,
@@ -164,4 +166,49 @@ fn the_distance_transform_carries_the_nearest_label() {
     assert_eq!(d[3], 3.0);
     assert_eq!(near[3], UPPER_BIT);
     assert_eq!(near[7], LOWER_BIT);
+}
+
+/// Gums the cut labelled teeth, beside real crowns: following that picture teaches the teeth's
+/// model pink where the arches are not tracked, and nothing of it where the tracked arches
+/// cover only the crowns.
+#[test]
+fn the_models_learn_teeth_only_where_the_tracked_arches_are() {
+    let (w, h) = (40, 30);
+    let (white, pink) = ([230u8, 220, 195], [200u8, 90, 100]);
+    let colours: Vec<[u8; 3]> = (0..w * h)
+        .map(|i| textured(if i % w < w / 2 { white } else { pink }, i % w, i / w))
+        .collect();
+    let lesson = lesson::Lesson {
+        colours: colours.clone(),
+        classes: vec![0; w * h],
+        far: vec![false; w * h],
+        roi: Roi { x0: 0, y0: 0, w, h },
+        mean_luma: 150.0,
+    };
+    let settings = SegmentSettings::default();
+    let crowns = || {
+        let teeth = ColourModel::learn(colours.iter().copied().filter(|c| c[1] > 150), 10);
+        Models {
+            teeth: teeth.expect("enough white pixels"),
+            mouth: None,
+            other: ColourModel::uniform(),
+            lit_luma: 150.0,
+        }
+    };
+    let drawn_over = |columns: usize| -> Vec<u8> {
+        (0..w * h)
+            .map(|i| if i % w < columns { UPPER_BIT } else { 0 })
+            .collect()
+    };
+    let mut everywhere = crowns();
+    lesson.follow(&drawn_over(w), w, &mut everywhere, &settings);
+    let mut on_the_crowns = crowns();
+    lesson.follow(&drawn_over(w / 2), w, &mut on_the_crowns, &settings);
+    let before = crowns().teeth.density(textured(pink, 30, 15));
+    let taught = everywhere.teeth.density(textured(pink, 30, 15));
+    let gated = on_the_crowns.teeth.density(textured(pink, 30, 15));
+    assert!(taught > 10.0 * before.max(1e-9), "{taught} vs {before}");
+    assert!(gated < 1.01 * before + 1e-9, "{gated} vs {before}");
+    let enamel = textured(white, 5, 5);
+    assert!(on_the_crowns.teeth.density(enamel) > 0.8 * crowns().teeth.density(enamel));
 }
