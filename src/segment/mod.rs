@@ -293,12 +293,12 @@ impl MaskSource for Segmenter<'_> {
         true
     }
 
-    /// The colour models follow the frame's pictures where their labels agree with the arches
-    /// drawn where they were tracked; a frame tracked `low-confidence` teaches nothing (its
-    /// arches may be lost, and its labels with them).
+    /// The colour models follow the frame's pictures, the teeth's where the arches drawn at
+    /// the tracked poses cover them ([`Lesson::follow`]); a frame tracked `low-confidence`
+    /// teaches nothing (its arches may be lost, and its labels with them).
     fn tracked(&mut self, _frame: u32, poses: &ArchPoses, status: Status) -> Result<()> {
         let started = std::time::Instant::now();
-        let lessons = std::mem::take(&mut self.lessons);
+        let lessons = std::mem::replace(&mut self.lessons, vec![None; self.cameras.len()]);
         if status == Status::Ok {
             let (capture, settings) = (self.capture, &self.settings);
             self.models
@@ -319,7 +319,6 @@ impl MaskSource for Segmenter<'_> {
                     lesson.follow(&drawn, cam.width as usize, m, settings);
                 });
         }
-        self.lessons = vec![None; self.cameras.len()];
         self.seconds += started.elapsed().as_secs_f64();
         Ok(())
     }
