@@ -533,6 +533,16 @@ fn segment_finds_the_jaw_again_after_the_mouth_closed() {
             assert!(error < 1.0, "frame {frame}: jaw {error} mm; {jaw:?}");
         }
     }
+    // Every frame the lips closed over is flagged.
+    let tracks: jawtrack::formats::TracksJson =
+        serde_json::from_str(&std::fs::read_to_string(tmp.path().join("tracks.json")).unwrap())
+            .unwrap();
+    for f in &tracks.frames {
+        let flagged = f.status() != jawtrack::formats::Status::Ok;
+        if (5..8).contains(&f.frame) {
+            assert!(flagged, "frame {} not flagged: {:?}", f.frame, f.status());
+        }
+    }
 }
 
 /// What `segment` printed, and each frame's jaw error (mm), on 13 frames of hard photos

@@ -405,6 +405,7 @@ fn fill_error(misled: Option<u32>) -> (f64, Vec<u32>) {
                     jaw_source: None,
                     tracked: None,
                     hand_set: false,
+                    teeth_hidden: false,
                 }
             })
             .collect(),

@@ -549,6 +549,55 @@ fn frames_without_masks_keep_the_last_pose_and_tracking_recovers() {
     );
 }
 
+/// Lips closed over the teeth in frame 2 (its masks show none): the frame is written
+/// `low-confidence` with `teeth_hidden`, tracking goes on from it as from an `ok` frame (the
+/// same poses as with the flag off), and a run resumed after it writes what one run does.
+#[test]
+fn frames_whose_masks_hide_the_teeth_are_flagged_and_tracking_goes_on() {
+    let t = tempfile::tempdir().unwrap();
+    let cap = t.path().join("c");
+    copy_dir(capture48(), &cap);
+    for camera in ["cam0", "cam1", "cam2"] {
+        let path = cap.join("masks").join(camera).join("000002.png");
+        let mut mask = image::open(&path).unwrap().into_luma8();
+        mask.pixels_mut().for_each(|p| p.0[0] = 0);
+        mask.save(&path).unwrap();
+    }
+    let read = |p: &Path| -> TracksJson {
+        serde_json::from_str(&std::fs::read_to_string(p).unwrap()).unwrap()
+    };
+    let status = |t: &TracksJson| -> Vec<(&'static str, bool)> {
+        t.frames
+            .iter()
+            .map(|f| (f.status.unwrap().as_str(), f.teeth_hidden))
+            .collect()
+    };
+    let flagged = t.path().join("flagged.json");
+    track(&cap, &flagged, &["--frames", "0..5"]);
+    let off = t.path().join("off.json");
+    let no_flag = [
+        "--frames",
+        "0..5",
+        "--settings",
+        r#"{"hidden_teeth_share": 0}"#,
+    ];
+    track(&cap, &off, &no_flag);
+    let (a, b) = (read(&flagged), read(&off));
+    let ok = ("ok", false);
+    assert_eq!(status(&a), [ok, ok, ("low-confidence", true), ok, ok]);
+    assert_eq!(status(&b), [ok; 5]);
+    for (x, y) in a.frames.iter().zip(&b.frames) {
+        assert_eq!((x.upper, x.lower), (y.upper, y.lower), "frame {}", x.frame);
+    }
+    let resumed = t.path().join("resumed.json");
+    track(&cap, &resumed, &["--frames", "0..3"]);
+    track(&cap, &resumed, &["--frames", "0..5", "--resume"]);
+    assert!(
+        std::fs::read(&flagged).unwrap() == std::fs::read(&resumed).unwrap(),
+        "resumed after the hidden frame, tracks.json differs from one run's"
+    );
+}
+
 /// The capture with its meshes written in another model frame (z up, -y anterior: a common
 /// CAD convention) and its poses changed to match: the same motion, other files.
 fn in_z_up_frame(src: &Path, dst: &Path) {

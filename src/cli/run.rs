@@ -74,7 +74,10 @@ pub fn track(capture: &Capture, options: SessionOptions) -> anyhow::Result<Summa
             .energies
             .as_ref()
             .map_or(0.0, |[u, l]| u.total(lambda) + l.total(lambda));
-        bar.set_message(format!("tracking (E = {e:.0}, {})", r.status.as_str()));
+        bar.set_message(format!(
+            "tracking (E = {e:.0}, {})",
+            r.written_status().as_str()
+        ));
         bar.inc(1);
     })?;
     bar.finish_and_clear();

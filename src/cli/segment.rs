@@ -100,7 +100,10 @@ pub fn run(mut args: Args) -> anyhow::Result<()> {
     }
     let bar = super::progress_bar(todo.len() as u64, "segmenting and tracking");
     let summary = session.run_with(Some(&mut segmenter), &mut |r| {
-        bar.set_message(format!("segmenting and tracking ({})", r.status.as_str()));
+        bar.set_message(format!(
+            "segmenting and tracking ({})",
+            r.written_status().as_str()
+        ));
         bar.inc(1);
     })?;
     bar.finish_and_clear();

@@ -185,6 +185,11 @@ impl Counts {
     pub fn mask_pixels(&self) -> u64 {
         self.bins[MASK_OWN * 3..MASK_OWN * 3 + 3].iter().sum()
     }
+    /// The visible BOI pixels (the incisal band) the masks give to the arch, and all of them.
+    pub fn boi_in_mask(&self) -> (u64, u64) {
+        let all = (0..4).map(|m| self.bins[m * 3 + 2]).sum();
+        (self.bins[MASK_OWN * 3 + 2], all)
+    }
     /// The paper's six bins, mask (off, on) x class: the other arch's and the mouth's pixels
     /// count as off.
     pub fn paper_bins(&self) -> [u64; 6] {
@@ -233,6 +238,17 @@ impl Energy {
     /// and the over-mouth term (masks that label the mouth), each at its weight.
     pub fn objective(&self, w: &Weights) -> f64 {
         self.total(w.lambda) + w.cross * self.cross() as f64 + w.mouth * self.over_mouth() as f64
+    }
+    /// The share of the arch's visible incisal band (its BOI) that the masks show as the arch,
+    /// over the cameras; `None` where no BOI is drawn. Near 1 with the lips apart, near 0 where
+    /// they close over the incisal edges.
+    pub fn boi_shown(&self) -> Option<f64> {
+        let (shown, all) = self
+            .cameras
+            .iter()
+            .map(Counts::boi_in_mask)
+            .fold((0, 0), |(s, a), (cs, ca)| (s + cs, a + ca));
+        (all > 0).then(|| shown as f64 / all as f64)
     }
     /// The paper's accuracy proxy: uncovered / mask pixels (0 without mask pixels).
     pub fn area_error(&self) -> f64 {

@@ -57,6 +57,11 @@ pub struct FrameRecordJson {
     /// over frames holds them fixed.
     #[serde(default, skip_serializing_if = "std::ops::Not::not")]
     pub hand_set: bool,
+    /// jawtrack's addition: the frame is `low-confidence` because the masks hide an arch's
+    /// incisal edges (the lips closed over them), though its energy was as good as an `ok`
+    /// frame's; tracking went on from it as from an `ok` one.
+    #[serde(default, skip_serializing_if = "std::ops::Not::not")]
+    pub teeth_hidden: bool,
 }
 
 /// A frame as tracked: its poses, and the information its masks gave about them (the 12x12
@@ -112,6 +117,15 @@ impl FrameRecordJson {
     /// The frame's status; a record that does not give one (ground truth) is `ok`.
     pub fn status(&self) -> Status {
         self.status.unwrap_or(Status::Ok)
+    }
+
+    /// The status tracking went on from: `ok` for a frame flagged only because its teeth were
+    /// hidden.
+    pub fn tracked_status(&self) -> Status {
+        match self.teeth_hidden {
+            true => Status::Ok,
+            false => self.status(),
+        }
     }
 
     /// The record's poses, checked as a pose file's are (errors name `path`, the file it was

@@ -239,6 +239,7 @@ fn write_ground_truth(dir: &Path, frames: &[FilmedFrame]) -> Result<()> {
             jaw_source: None,
             tracked: None,
             hand_set: false,
+            teeth_hidden: false,
         })
         .collect();
     write_json_atomic(

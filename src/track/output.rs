@@ -127,7 +127,8 @@ pub fn record(r: &FrameResult) -> FrameRecordJson {
             lower: Some(l.area_error()),
             upper: Some(u.area_error()),
         }),
-        status: Some(r.status),
+        status: Some(r.written_status()),
+        teeth_hidden: r.teeth_hidden,
         jaw_source: None,
         tracked: r.information.map(|info| TrackedJson {
             upper: PoseJson::from(&r.poses.upper),

@@ -23,6 +23,8 @@ pub struct ScoreReport {
     pub frames: usize,
     pub frames_ok: usize,
     pub frames_low_confidence: usize,
+    /// Of the `low-confidence` frames, those flagged because the masks hid the teeth.
+    pub frames_teeth_hidden: usize,
     pub frames_no_data: usize,
     pub upper: PoseErrors,
     pub lower: PoseErrors,
@@ -111,7 +113,7 @@ pub fn score_against(
     let mut area: [Vec<f64>; 2] = Default::default();
     let mut per_frame = Vec::new();
     let mut flagged = Vec::new();
-    let (mut ok, mut low, mut none) = (0, 0, 0);
+    let (mut ok, mut low, mut none, mut hidden) = (0, 0, 0, 0);
     for (rec, poses) in tracked {
         let Some(gt) = reference(rec.frame) else {
             continue;
@@ -121,6 +123,7 @@ pub fn score_against(
             Status::NoData => none += 1,
             Status::Ok => ok += 1,
         }
+        hidden += rec.teeth_hidden as usize;
         let mut frame_err = [0.0; 3];
         let pairs = [
             (poses.upper, gt.upper, &metrics[0]),
@@ -155,6 +158,7 @@ pub fn score_against(
         frames: per_frame.len(),
         frames_ok: ok,
         frames_low_confidence: low,
+        frames_teeth_hidden: hidden,
         frames_no_data: none,
         upper: pose_errors(&errors[0]),
         lower: pose_errors(&errors[1]),

@@ -297,6 +297,7 @@ fn track_frame(
             poses: state.last,
             energies: None,
             status: Status::NoData,
+            teeth_hidden: false,
             evaluations: 0,
             steps: 0,
             information: None,
@@ -460,6 +461,11 @@ fn finish(
 ) -> FrameResult {
     let worst_area_error = energies[0].area_error().max(energies[1].area_error());
     let status = confidence(settings, state, worst_area_error);
+    let teeth_hidden = status == Status::Ok
+        && energies.iter().any(|e| {
+            e.boi_shown()
+                .is_some_and(|s| s < settings.hidden_teeth_share)
+        });
     state.advance(
         status,
         as_written(&poses),
@@ -471,6 +477,7 @@ fn finish(
         poses,
         energies: Some(energies),
         status,
+        teeth_hidden,
         evaluations,
         steps: 0,
         information: None,

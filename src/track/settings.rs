@@ -38,6 +38,13 @@ pub struct TrackSettings {
     pub low_confidence_floor: f64,
     pub low_confidence_ratio: f64,
     pub confidence_window: usize,
+    /// A frame where either arch's incisal band (its BOI, as drawn at the poses found) shows
+    /// in the masks for less than this share of its pixels is written `low-confidence` with
+    /// `teeth_hidden`: the lips hide the teeth, and the pose is what the frames before and the
+    /// priors left it at. Tracking goes on from it as from an `ok` frame. 0 turns it off.
+    /// (Left out of the output's fingerprint at its default, so runs from before it resume.)
+    #[serde(skip_serializing_if = "is_default_hidden")]
+    pub hidden_teeth_share: f64,
     /// Extra starts for the lower arch from an average temporomandibular joint fitted to the
     /// capture's meshes (the jaw moves on a low-dimensional manifold): a grid of this many
     /// openings, lateral excursions and protrusions, each placed on the frame's upper arch;
@@ -144,6 +151,12 @@ fn digest_of<S: serde::Serializer>(
 
 const DEFAULT_RELOCATE: f64 = 0.2;
 
+const DEFAULT_HIDDEN: f64 = 0.1;
+
+fn is_default_hidden(v: &f64) -> bool {
+    *v == DEFAULT_HIDDEN
+}
+
 fn is_default_relocate(v: &f64) -> bool {
     *v == DEFAULT_RELOCATE
 }
@@ -160,6 +173,7 @@ impl Default for TrackSettings {
             low_confidence_floor: 0.03,
             low_confidence_ratio: 2.5,
             confidence_window: 15,
+            hidden_teeth_share: DEFAULT_HIDDEN,
             jaw_prior_grid: [7, 5, 3],
             jaw_prior_fine_grid: [31, 11, 6],
             jaw_prior_nearest: 60,
@@ -199,6 +213,7 @@ impl TrackSettings {
         rules.number("relocate_area_error", self.relocate_area_error, 0.0, 1.0)?;
         rules.number("low_confidence_floor", self.low_confidence_floor, 0.0, 1.0)?;
         rules.number("low_confidence_ratio", self.low_confidence_ratio, 0.0, 1e6)?;
+        rules.number("hidden_teeth_share", self.hidden_teeth_share, 0.0, 1.0)?;
         rules.count(
             "confidence_window",
             self.confidence_window as u64,

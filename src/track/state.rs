@@ -21,7 +21,11 @@ pub struct FrameResult {
     pub poses: ArchPoses,
     /// Final energies (upper, lower); `None` for a frame without data.
     pub energies: Option<[Energy; 2]>,
+    /// The energy's verdict, which tracking goes on from.
     pub status: Status,
+    /// The masks hide an arch's incisal band (`hidden_teeth_share`): written
+    /// `low-confidence` whatever `status` says.
+    pub teeth_hidden: bool,
     pub evaluations: usize,
     /// Gauss-Newton steps (each a Jacobian of every silhouette sample; 0 for the paper's
     /// search).
@@ -31,6 +35,16 @@ pub struct FrameResult {
     /// for a frame found afresh by Gauss-Newton, or with the window off.
     pub information: Option<Matrix12>,
     pub seconds: f64,
+}
+
+impl FrameResult {
+    /// The status tracks.json gives the frame: `low-confidence` where the teeth were hidden.
+    pub fn written_status(&self) -> Status {
+        match self.teeth_hidden {
+            true => Status::LowConfidence,
+            false => self.status,
+        }
+    }
 }
 
 /// The last poses (and the ones before, for the velocity) and recent area errors of good
@@ -102,7 +116,7 @@ impl TrackState {
     ) -> Result<TrackState> {
         let mut state = TrackState::new(start);
         for r in records {
-            let (poses, status) = (r.poses(path)?, r.status());
+            let (poses, status) = (r.poses(path)?, r.tracked_status());
             let worst = match status {
                 Status::Ok => worst_area_error(path, r)?,
                 _ => f64::NAN,

@@ -425,6 +425,7 @@ fn hand_set_record(frame: u32, poses: &ArchPoses, e: &[Energy; 2]) -> FrameRecor
         jaw_source: None,
         tracked: None,
         hand_set: true,
+        teeth_hidden: false,
     }
 }
 

@@ -298,7 +298,7 @@ impl Workbench {
         if let Some(i) = f.index(r.frame) {
             f.shown[i] = TrackedFrame {
                 frame: r.frame,
-                status: r.status,
+                status: r.written_status(),
                 hand_set: false,
                 drafted: false,
                 poses: r.poses,
