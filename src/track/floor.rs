@@ -8,6 +8,7 @@ use super::joint::align_both;
 use super::joint_frame::{with_hinges, with_views};
 use super::penalties::Penalties;
 use super::prior::centre;
+use super::score::FlagScore;
 use super::search::{ArchSearch, GaussNewtonSettings, SearchSettings, search};
 use crate::anatomy::MeshMetric;
 use crate::arch::{Arch, ArchPoses};
@@ -158,11 +159,28 @@ pub struct FloorTally {
     shortfalls: usize,
     /// Per capture, the median area error (%) of the upper and the lower arch.
     area_percent: [Vec<f64>; 2],
+    /// The flags against the truth, pooled: frames off by more than `WRONG_MM` (flagged or
+    /// not), the others (flagged or not), and the frames flagged with their teeth hidden.
+    flags: FlagCounts,
     pub seconds: f64,
     pub evaluations: usize,
     /// Gauss-Newton steps (each a Jacobian of every silhouette sample).
     pub steps: usize,
     pub frames: usize,
+}
+
+/// How a run's flags (`low-confidence`, `no-data`) met the truth, summed over captures.
+#[derive(Debug, Clone, Copy, Default, serde::Serialize)]
+pub struct FlagCounts {
+    /// Frames whose jaw is off by more than [`WRONG_MM`](super::score::WRONG_MM), and how many
+    /// of them are flagged.
+    pub wrong: usize,
+    pub wrong_flagged: usize,
+    /// The other frames, and how many of them are flagged anyway.
+    pub right: usize,
+    pub right_flagged: usize,
+    /// Flagged frames whose masks hid the teeth.
+    pub teeth_hidden: usize,
 }
 
 /// What a tally comes to: medians and 95th percentiles, the floor's where it was measured.
@@ -186,6 +204,7 @@ pub struct FloorSummary {
     /// Share of frames whose tracked poses have a higher objective than the floor's.
     pub search_shortfall: f64,
     pub area_error_percent_median: [f64; 2],
+    pub flags: FlagCounts,
 }
 
 impl FloorTally {
@@ -200,6 +219,17 @@ impl FloorTally {
             self.ratios.push(errors[2] / f.jaw_mm.max(0.01));
             self.shortfalls += f.stopped_short() as usize;
         }
+    }
+
+    /// A capture's flags against the truth (`score`'s), and how many of its frames were
+    /// flagged with their teeth hidden.
+    pub fn capture_flags(&mut self, f: &FlagScore, teeth_hidden: usize) {
+        let t = &mut self.flags;
+        t.wrong += f.wrong;
+        t.wrong_flagged += f.wrong_flagged;
+        t.right += f.right;
+        t.right_flagged += f.right_flagged;
+        t.teeth_hidden += teeth_hidden;
     }
 
     /// A capture's median area errors (%), upper and lower.
@@ -233,6 +263,7 @@ impl FloorTally {
                 self.shortfalls as f64 / self.errors[2].len().max(1) as f64,
             ),
             area_error_percent_median: self.area_percent.each_ref().map(|v| Stats::of(v).median),
+            flags: self.flags,
         }
     }
 }

@@ -214,6 +214,7 @@ fn measure_capture(
         );
     }
     tally.capture_area_errors(report.area_error_percent.each_ref().map(|s| s.median));
+    tally.capture_flags(&report.flags, report.frames_teeth_hidden);
     Ok(capture.mouth().is_some())
 }
 
@@ -278,10 +279,10 @@ fn track_capture(
 /// Prints the rows as a table: errors as median / 95th percentile, against the energy's floor.
 fn print_table(rows: &[TrackRow]) {
     println!(
-        "mean vertex error in mm (median / 95th percentile); floor = error of E's minimum found from the truth, smooth = of the smooth energy's (Gauss-Newton's)"
+        "mean vertex error in mm (median / 95th percentile); floor = error of E's minimum found from the truth, smooth = of the smooth energy's (Gauss-Newton's); flags: flagged of the frames with the jaw off by more than 1 mm, flagged of the others, of those with the teeth hidden"
     );
     println!(
-        "{:<10} {:<8} {:<5} {:>6} {:>8} {:>7} {:>6} {:>13} {:>13} {:>13} {:>13} {:>13} {:>11} {:>9} {:>13}",
+        "{:<10} {:<8} {:<5} {:>6} {:>8} {:>7} {:>6} {:>13} {:>13} {:>13} {:>13} {:>13} {:>11} {:>9} {:>13} {:>16}",
         "preset",
         "masks",
         "mouth",
@@ -296,12 +297,13 @@ fn print_table(rows: &[TrackRow]) {
         "smooth floor",
         "ratio",
         "shortfall",
-        "area err %"
+        "area err %",
+        "flags"
     );
     for row in rows {
         let r = &row.summary;
         println!(
-            "{:<10} {:<8} {:<5} {:>6} {:>8.2} {:>7.0} {:>6.1} {:>6.3}/{:<6.3} {:>6.3}/{:<6.3} {:>6.3}/{:<6.3} {:>6.3}/{:<6.3} {:>6.3}/{:<6.3} {:>11.2} {:>9.2} {:>6.2}/{:<6.2}",
+            "{:<10} {:<8} {:<5} {:>6} {:>8.2} {:>7.0} {:>6.1} {:>6.3}/{:<6.3} {:>6.3}/{:<6.3} {:>6.3}/{:<6.3} {:>6.3}/{:<6.3} {:>6.3}/{:<6.3} {:>11.2} {:>9.2} {:>6.2}/{:<6.2} {:>3}/{:<3} {:>3}/{:<3} {:>2}",
             row.preset,
             row.masks,
             if row.mouth_label { "yes" } else { "no" },
@@ -322,7 +324,12 @@ fn print_table(rows: &[TrackRow]) {
             r.median_ratio_to_floor,
             r.search_shortfall,
             r.area_error_percent_median[0],
-            r.area_error_percent_median[1]
+            r.area_error_percent_median[1],
+            r.flags.wrong_flagged,
+            r.flags.wrong,
+            r.flags.right_flagged,
+            r.flags.right,
+            r.flags.teeth_hidden,
         );
     }
 }
