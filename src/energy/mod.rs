@@ -187,7 +187,7 @@ impl Counts {
     }
     /// The visible BOI pixels (the incisal band) the masks give to the arch, and all of them.
     pub fn boi_in_mask(&self) -> (u64, u64) {
-        let all = (0..4).map(|m| self.bins[m * 3 + 2]).sum();
+        let all = (0..BINS / 3).map(|m| self.bins[m * 3 + 2]).sum();
         (self.bins[MASK_OWN * 3 + 2], all)
     }
     /// The paper's six bins, mask (off, on) x class: the other arch's and the mouth's pixels
