@@ -98,7 +98,11 @@ pub struct GaussNewtonSettings {
     /// left them.
     pub motion_prior: f64,
     /// What a millimetre² of contact depth, and of the jaw's distance from its manifold,
-    /// beyond their tolerances costs (same unit); 0 leaves a term out.
+    /// beyond their tolerances costs (same unit); 0 leaves a term out. The manifold is the
+    /// average joint's, and a subject's jaw poses lie up to a millimetre or two off it
+    /// (another joint, another rest bite): its stiffness is low enough to yield to what the
+    /// masks see and holds only the directions they do not (docs/tracking.md, "Another
+    /// subject's joint"). Contact is physics, and stays stiff.
     pub contact_stiffness: f64,
     pub manifold_stiffness: f64,
     /// The lower arch also starts from the best of this many poses of the jaw prior's fine
@@ -129,7 +133,7 @@ impl Default for GaussNewtonSettings {
             smoothing_px: 0.5,
             motion_prior: 30.0,
             contact_stiffness: 1000.0,
-            manifold_stiffness: 1000.0,
+            manifold_stiffness: 10.0,
             jaw_prior_nearest: 20,
             fallback_ratio: 1.5,
             fallback_misdrawn: 0.1,

@@ -288,6 +288,24 @@ pub fn have_ffmpeg() -> bool {
     found
 }
 
+/// A Python with numpy (JAWTRACK_PYTHON, else `python3`), for benches/other_capture.py, or the
+/// test is skipped (failed where CI sets JAWTRACK_REQUIRE_NUMPY).
+pub fn python_with_numpy() -> Option<String> {
+    let python = std::env::var("JAWTRACK_PYTHON").unwrap_or_else(|_| "python3".into());
+    let found = std::process::Command::new(&python)
+        .args(["-c", "import numpy"])
+        .output()
+        .is_ok_and(|o| o.status.success());
+    if !found {
+        assert!(
+            std::env::var_os("JAWTRACK_REQUIRE_NUMPY").is_none(),
+            "JAWTRACK_REQUIRE_NUMPY is set but `{python}` cannot import numpy"
+        );
+        eprintln!("skipped: `{python}` cannot import numpy (set JAWTRACK_PYTHON)");
+    }
+    found.then_some(python)
+}
+
 /// A synthetic capture (40 frames) and a rig learned on its ground truth, made once per test
 /// binary.
 pub struct RigFixture {
