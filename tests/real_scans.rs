@@ -160,44 +160,52 @@ fn a_synthetic_capture_on_the_real_scans_loads_back() {
     }
 }
 
-/// A capture written by another program (benches/other_capture.py: its own rasteriser, camera
+/// Captures written by another program (benches/other_capture.py: its own rasteriser, camera
 /// arc, rest bite and joint, whose condyles slide less than the average joint's) from the real
-/// scans, on clean masks: the jaw follows the masks, not the average joint (measured: 0.11 mm
-/// median on 34 frames; 1.03 mm while the manifold was stiff).
+/// scans, on clean masks: the jaw follows the masks, not the average joint (measured on seed 1:
+/// 0.09 / 0.19 mm; 0.72 / 3.22 while the manifold was stiff). Seed 2 without init.json: its
+/// first frame's jaw, 26° open, lies farther from the average joint's poses than the solver
+/// reaches, and is found from the lower arch's own masks (0.15 / 0.30 mm; 34.5 mm off when the
+/// jaw prior alone placed it).
 #[test]
-fn a_capture_from_another_programs_joint_is_tracked_to_its_masks() {
+fn captures_from_another_programs_joint_are_tracked_to_their_masks() {
     let Some(scans) = scan_dir() else { return };
     let Some(python) = common::python_with_numpy() else {
         return;
     };
     let t = tempfile::tempdir().unwrap();
-    let cap = t.path().join("other");
     let script = std::path::Path::new(env!("CARGO_MANIFEST_DIR")).join("benches/other_capture.py");
-    let out = std::process::Command::new(python)
-        .arg(&script)
-        .arg(&cap)
-        .arg("--scans")
-        .arg(&scans)
-        .args(["--frames", "12", "--seed", "1"])
-        .output()
-        .expect("python runs benches/other_capture.py");
-    assert!(
-        out.status.success(),
-        "{}",
-        String::from_utf8_lossy(&out.stderr)
-    );
-    let tracks = t.path().join("tracks.json");
-    let (c, o) = (cap.to_str().unwrap(), tracks.to_str().unwrap());
-    common::ok(&["track", c, "-o", o, "--backend", "cpu"]);
-    let score: serde_json::Value =
-        serde_json::from_str(&common::ok(&["score", c, o, "--json"])).unwrap();
-    let jaw = &score["jaw"]["mean_vertex_mm"];
-    let (median, p95) = (
-        jaw["median"].as_f64().unwrap(),
-        jaw["p95"].as_f64().unwrap(),
-    );
-    assert!(
-        median < 0.3 && p95 < 0.8,
-        "jaw {median} / {p95} mm (median / p95)"
-    );
+    for (seed, init) in [("1", true), ("2", false)] {
+        let cap = t.path().join(format!("other{seed}"));
+        let out = std::process::Command::new(&python)
+            .arg(&script)
+            .arg(&cap)
+            .arg("--scans")
+            .arg(&scans)
+            .args(["--frames", "12", "--seed", seed])
+            .output()
+            .expect("python runs benches/other_capture.py");
+        assert!(
+            out.status.success(),
+            "{}",
+            String::from_utf8_lossy(&out.stderr)
+        );
+        if !init {
+            std::fs::remove_file(cap.join("init.json")).unwrap();
+        }
+        let tracks = t.path().join(format!("tracks{seed}.json"));
+        let (c, o) = (cap.to_str().unwrap(), tracks.to_str().unwrap());
+        common::ok(&["track", c, "-o", o, "--backend", "cpu"]);
+        let score: serde_json::Value =
+            serde_json::from_str(&common::ok(&["score", c, o, "--json"])).unwrap();
+        let jaw = &score["jaw"]["mean_vertex_mm"];
+        let (median, p95) = (
+            jaw["median"].as_f64().unwrap(),
+            jaw["p95"].as_f64().unwrap(),
+        );
+        assert!(
+            median < 0.3 && p95 < 0.8,
+            "seed {seed} (init.json: {init}): jaw {median} / {p95} mm (median / p95)"
+        );
+    }
 }

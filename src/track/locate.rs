@@ -11,7 +11,9 @@
 //! anterior axis looks alike), and neither are the arch's pitch (the cameras may look from
 //! below) or a few degrees of yaw: those are tried on a grid, each hypothesis moved until its
 //! drawn teeth's centroids triangulate to the masks', and the energy ranks them. The lower arch
-//! comes from the jaw prior on the best upper arches (both ways up, for the same reason), then
+//! comes from the jaw prior on the best upper arches (both ways up, for the same reason), and
+//! from its own masks as the upper did (the prior is an average joint's, which a subject's
+//! wide-open jaw can lie millimetres from), then
 //! Gauss-Newton refines both together ([`JointFrame`]), tilting both about their left-right
 //! axis to get out of the valley the lips leave (they hide the gums that would tell the tilt),
 //! and the energy picks the result. Per-arch masks only: one label for both arches' teeth
@@ -49,8 +51,9 @@ const REACHES_PX: [f64; 6] = [16.0, 8.0, 4.0, 2.0, 1.0, 1.0];
 const SAME_ROLL_DEG: f64 = 10.0;
 /// Centroid-matching rounds per hypothesis.
 const CENTRING_ROUNDS: usize = 2;
-/// How many of the ranked upper-arch hypotheses go on to the lower arch and the solver.
+/// How many upper-arch hypotheses go on to the solver, and lower-arch ones beside the prior's.
 const KEEP: usize = 4;
+const KEEP_LOWER: usize = 2;
 /// The tilts (degrees) tried about the arches' left-right axis, coarse to fine.
 const TILT_DEG: [u32; 3] = [4, 2, 1];
 /// Solver runs per start at most, and the share of the objective a run must gain for
@@ -333,7 +336,6 @@ fn find(
     let Some(frame) = world_frame(upper_seen) else {
         return Ok(Err(NotFound::Unplaced));
     };
-    let target = frame.teeth;
     let seen: Vec<&Camera> = upper_seen.iter().map(|b| b.camera).collect();
 
     let (upper, lower) = (capture.upper(), capture.lower());
@@ -347,44 +349,15 @@ fn find(
         .unwrap_or_else(|| upper.principal_axes().0);
     // Each hypothesis: the upper arch's pose, moved until its drawn teeth centre on the masks',
     // then aligned to them alone (the lower arch unknown yet).
-    let mut rotations = Vec::new();
-    for axes in &frame.axes {
-        for pitch in PITCH_DEG {
-            for yaw in YAW_DEG {
-                let turn = Rotation3::from_axis_angle(&Vector3::y_axis(), yaw.to_radians())
-                    * Rotation3::from_axis_angle(&Vector3::x_axis(), pitch.to_radians());
-                rotations.push(axes * turn * scan);
-            }
-        }
-    }
     let reads = FrameReads::new(capture, masks);
-    let align_settings = AlignSettings {
-        reaches_px: REACHES_PX.to_vec(),
-        ..AlignSettings::default()
-    };
-    let hypotheses: Vec<Pose> = rotations
-        .par_iter()
-        .map(|&rotation| {
-            let mut pose = Pose::new(rotation, target - rotation * anchor);
-            for _ in 0..CENTRING_ROUNDS {
-                match drawn_centre(upper, &pose, &seen) {
-                    Some(drawn) => pose.translation += target - drawn,
-                    None => break,
-                }
-            }
-            let upper_edges = (upper, &edges[0]);
-            reads
-                .align(
-                    Arch::Upper,
-                    &weights,
-                    upper_edges,
-                    pose,
-                    &[],
-                    &align_settings,
-                )
-                .pose
-        })
-        .collect();
+    let hypotheses = arch_hypotheses(
+        Arch::Upper,
+        (upper, &edges[0]),
+        &frame,
+        &seen,
+        &reads,
+        &weights,
+    );
     // The lower arch far behind the subject while the upper arch is ranked: it hides nothing.
     let away = Pose::from_translation(frame.teeth - frame.anterior * 5000.0);
     let candidates: Vec<ArchPoses> = hypotheses
@@ -392,13 +365,37 @@ fn find(
         .map(|&upper| ArchPoses { upper, lower: away })
         .collect();
     let mut evaluations = candidates.len();
-    let scores = engine.evaluate(Arch::Upper, &candidates)?;
-    let mut ranked: Vec<(f64, Pose)> = scores
-        .iter()
-        .zip(&hypotheses)
-        .map(|(e, p)| (e.objective(&weights), *p))
-        .collect();
-    ranked.sort_by(|a, b| a.0.total_cmp(&b.0));
+    let ranked = ranked_by_energy(engine, Arch::Upper, &candidates, &weights)?;
+    // The lower arch from its own masks too: a subject's wide-open jaw can lie farther from
+    // all of the average joint's poses than the solver reaches.
+    let lower_blobs = blobs(Arch::Lower.mask_bit());
+    let lower_own: Vec<Pose> = match world_frame(&lower_blobs) {
+        Some(lower_frame) if lower_blobs.len() >= 2 => {
+            let seen: Vec<&Camera> = lower_blobs.iter().map(|b| b.camera).collect();
+            let found = arch_hypotheses(
+                Arch::Lower,
+                (lower, &edges[1]),
+                &lower_frame,
+                &seen,
+                &reads,
+                &weights,
+            );
+            let with_upper: Vec<ArchPoses> = found
+                .iter()
+                .map(|&lower| ArchPoses {
+                    upper: ranked[0].1,
+                    lower,
+                })
+                .collect();
+            evaluations += with_upper.len();
+            ranked_by_energy(engine, Arch::Lower, &with_upper, &weights)?
+                .into_iter()
+                .take(KEEP_LOWER)
+                .map(|(_, p)| p)
+                .collect()
+        }
+        _ => Vec::new(),
+    };
     // Which side of each arch the other lies on is the meshes' own business (their crowns face
     // each other): both ways, for each arch, and the energy decides.
     let lower_thinnest = lower.principal_axes().1[0];
@@ -452,6 +449,16 @@ fn find(
             edges,
         };
         let mut found = refine(&solver, engine, masks, start, &weights, &mut evaluations)?;
+        for &lower in &lower_own {
+            let start = ArchPoses {
+                upper: upper_pose,
+                lower,
+            };
+            let other = refine(&solver, engine, masks, start, &weights, &mut evaluations)?;
+            if total(&other, &weights) < total(&found, &weights) {
+                found = other;
+            }
+        }
         // The nod: masks that show the teeth's edges and not the gums barely tell the occlusal
         // plane's tilt, and the solver stays near the tilt a hypothesis had; both arches are
         // tilted about their left-right axis, each tilt solved, while one pays.
@@ -495,6 +502,70 @@ fn find(
         return Ok(Err(NotFound::Misfit(best.misfit)));
     }
     Ok(Ok(best))
+}
+
+/// An arch's hypotheses in `frame` (the roll guesses its masks' band gives): its scan frame
+/// turned to each roll and to each pitch and yaw of the grid, centred until its drawn teeth's
+/// centroids triangulate to the masks' (in the cameras `seen`), then aligned to its own masks
+/// alone.
+fn arch_hypotheses(
+    arch: Arch,
+    (mesh, edges): (&Mesh, &ContourEdges),
+    frame: &Frame,
+    seen: &[&Camera],
+    reads: &FrameReads,
+    weights: &Weights,
+) -> Vec<Pose> {
+    let scan = scan_frame(mesh, &mesh.principal_axes().1[0]);
+    let anchor = mesh
+        .boi_centroid()
+        .unwrap_or_else(|| mesh.principal_axes().0);
+    let mut rotations = Vec::new();
+    for axes in &frame.axes {
+        for pitch in PITCH_DEG {
+            for yaw in YAW_DEG {
+                let turn = Rotation3::from_axis_angle(&Vector3::y_axis(), yaw.to_radians())
+                    * Rotation3::from_axis_angle(&Vector3::x_axis(), pitch.to_radians());
+                rotations.push(axes * turn * scan);
+            }
+        }
+    }
+    let align_settings = AlignSettings {
+        reaches_px: REACHES_PX.to_vec(),
+        ..AlignSettings::default()
+    };
+    rotations
+        .par_iter()
+        .map(|&rotation| {
+            let mut pose = Pose::new(rotation, frame.teeth - rotation * anchor);
+            for _ in 0..CENTRING_ROUNDS {
+                match drawn_centre(mesh, &pose, seen) {
+                    Some(drawn) => pose.translation += frame.teeth - drawn,
+                    None => break,
+                }
+            }
+            reads
+                .align(arch, weights, (mesh, edges), pose, &[], &align_settings)
+                .pose
+        })
+        .collect()
+}
+
+/// `arch`'s pose in each of `options`, best first by its objective there.
+fn ranked_by_energy(
+    engine: &dyn EnergyEngine,
+    arch: Arch,
+    options: &[ArchPoses],
+    weights: &Weights,
+) -> Result<Vec<(f64, Pose)>> {
+    let scores = engine.evaluate(arch, options)?;
+    let mut ranked: Vec<(f64, Pose)> = scores
+        .iter()
+        .zip(options)
+        .map(|(e, o)| (e.objective(weights), *o.get(arch)))
+        .collect();
+    ranked.sort_by(|a, b| a.0.total_cmp(&b.0));
+    Ok(ranked)
 }
 
 /// Both arches' objectives.
