@@ -347,9 +347,8 @@ fn find(
     let anchor = upper
         .boi_centroid()
         .unwrap_or_else(|| upper.principal_axes().0);
-    // Each hypothesis: the upper arch's pose, moved until its drawn teeth centre on the masks',
-    // then aligned to them alone (the lower arch unknown yet).
     let reads = FrameReads::new(capture, masks);
+    // The upper arch's hypotheses, aligned to its masks alone (the lower arch unknown yet).
     let hypotheses = arch_hypotheses(
         Arch::Upper,
         (upper, &edges[0]),
