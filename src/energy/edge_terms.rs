@@ -34,6 +34,10 @@ pub struct EdgeSample {
     pub view: usize,
     pub point: ContourPoint,
     pub kind: EdgeKind,
+    /// The other arch's model lies just beyond it (per-arch masks): the edge between two
+    /// labels of teeth, which a segmentation's bias between teeth and the rest does not move
+    /// (`track::edge_offsets`).
+    pub beside_other: bool,
 }
 
 /// How the terms are read.

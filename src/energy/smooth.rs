@@ -68,13 +68,7 @@ fn shown(
     inside: &[u8],
     outside: &dyn Fn(u8) -> bool,
 ) -> Option<u8> {
-    let rect = target.rect?;
-    let index = |p: Vector2<f64>| {
-        let (x, y) = (p.x.round() - rect.x0 as f64, p.y.round() - rect.y0 as f64);
-        let within = x >= 0.0 && y >= 0.0 && x < rect.width as f64 && y < rect.height as f64;
-        within.then(|| y as usize * rect.width as usize + x as usize)
-    };
-    let i = index(c.pixel - 0.75 * c.normal)?;
+    let i = pixel_index(target, c.pixel - 0.75 * c.normal)?;
     let class = target.class[i];
     if !inside.contains(&class) {
         return None;
@@ -83,8 +77,20 @@ fn shown(
     if 1.0 / depth < 1.0 / c.inv_depth - OCCLUSION_MM {
         return None;
     }
-    let beyond = index(c.pixel + 0.75 * c.normal).map_or(0, |j| target.class[j]);
-    outside(beyond).then_some(class)
+    outside(class_beyond(c, target)).then_some(class)
+}
+
+/// The index in `target` of the pixel nearest `p`, if it lies within.
+fn pixel_index(target: &Target, p: Vector2<f64>) -> Option<usize> {
+    let rect = target.rect?;
+    let (x, y) = (p.x.round() - rect.x0 as f64, p.y.round() - rect.y0 as f64);
+    let within = x >= 0.0 && y >= 0.0 && x < rect.width as f64 && y < rect.height as f64;
+    within.then(|| y as usize * rect.width as usize + x as usize)
+}
+
+/// The class `target` holds just beyond sample `c` (0 off the drawn rectangle).
+fn class_beyond(c: &ContourPoint, target: &Target) -> u8 {
+    pixel_index(target, c.pixel + 0.75 * c.normal).map_or(0, |j| target.class[j])
 }
 
 /// 1 where `target` holds one of the classes `inside`, bilinear between pixel centres.
@@ -146,25 +152,28 @@ pub fn samples(
                     ..*point
                 }
             };
-            let mut push = |point: ContourPoint, kind: EdgeKind| {
+            let other = classes[1 - a];
+            let mut push = |point: ContourPoint, kind: EdgeKind, beside_other: bool| {
                 out.push(EdgeSample {
                     arch: a,
                     view: v,
                     point,
                     kind,
+                    beside_other,
                 })
             };
             for point in contour {
                 if let Some(class) = shown(&point, &target, &own, &|b| !own.contains(&b)) {
+                    let beside_other = other.contains(&class_beyond(&point, &target));
                     let point = rendered(&own, &point);
                     let boi = class == own[1];
-                    push(point, EdgeKind::Silhouette { boi });
+                    push(point, EdgeKind::Silhouette { boi }, beside_other);
                 }
             }
             for point in region {
                 if shown(&point, &target, &own[1..], &|b| b == own[0]).is_some() {
                     let point = rendered(&own[1..], &point);
-                    push(point, EdgeKind::Region);
+                    push(point, EdgeKind::Region, false);
                 }
             }
         }
@@ -243,6 +252,42 @@ pub fn normal_equations(samples: &[EdgeSample], terms: &[Option<EdgeTerm>]) -> N
     partial
         .into_iter()
         .fold(NormalEquations::zero(), NormalEquations::add)
+}
+
+/// What one view's samples add to the normal equations for an offset of its mask's edges
+/// against what is not teeth (the samples drawn that much wider: each offset falls by it;
+/// those beside the other arch stay): the sums of the terms' weights, of weight·offset and of
+/// weight·row.
+#[derive(Debug, Clone, Copy)]
+pub struct ViewSums {
+    pub weight: f64,
+    pub weighted_offset: f64,
+    pub weighted_row: Vector12,
+}
+
+/// Each of `views` views' [`ViewSums`] of `samples` with their `terms`, summed in order.
+pub fn view_sums(
+    samples: &[EdgeSample],
+    terms: &[Option<EdgeTerm>],
+    views: usize,
+) -> Vec<ViewSums> {
+    let mut out = vec![
+        ViewSums {
+            weight: 0.0,
+            weighted_offset: 0.0,
+            weighted_row: Vector12::zeros(),
+        };
+        views
+    ];
+    for (s, t) in samples.iter().zip(terms) {
+        let (Some(t), Some(v), false) = (t, out.get_mut(s.view), s.beside_other) else {
+            continue;
+        };
+        v.weight += t.weight;
+        v.weighted_offset += t.weight * t.offset_px;
+        v.weighted_row += t.weight * row(s);
+    }
+    out
 }
 
 /// The normal equations' −g, the gradient Gauss-Newton steps along, against central

@@ -9,6 +9,6 @@ pub mod tracks;
 pub use jaw::{JAW_FORMAT, JawPoses, read_jaw_poses, write_jaw_poses};
 pub use pose::{MAX_TRANSLATION_MM, PoseJson, ROTATION_TOLERANCE, read_pose_file};
 pub use tracks::{
-    ArchEnergyJson, FramePoses, FrameRecordJson, JawSource, MAX_JAW_MM, PerArchJson, Status,
-    TRACKS_FORMAT, TrackedJson, TracksJson, read_poses, read_tracks,
+    ArchEnergyJson, EdgeOffsetsJson, FramePoses, FrameRecordJson, JawSource, MAX_JAW_MM,
+    PerArchJson, Status, TRACKS_FORMAT, TrackedJson, TracksJson, read_poses, read_tracks,
 };

@@ -62,6 +62,20 @@ pub struct FrameRecordJson {
     /// frame's; tracking went on from it as from an `ok` one.
     #[serde(default, skip_serializing_if = "std::ops::Not::not")]
     pub teeth_hidden: bool,
+    /// jawtrack's addition: each camera's offset of its masks' edges as estimated after this
+    /// frame, and what the frames so far know of them (`track::edge_offsets`).
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub edge_offsets: Option<EdgeOffsetsJson>,
+}
+
+/// Each camera's offset of its masks' edges (pixels of its masks, outwards: the masks' teeth
+/// wider than the model's), in the capture's camera order, and their information matrix
+/// (row by row, per pixel², in the tracker's residual unit).
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct EdgeOffsetsJson {
+    pub px: Vec<f64>,
+    pub information: Vec<Vec<f64>>,
 }
 
 /// A frame as tracked: its poses, and the information its masks gave about them (the 12x12

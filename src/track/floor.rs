@@ -102,7 +102,15 @@ pub fn smooth_floor_poses(
     let apart = matches!(capture.mask_mode(), MaskMode::PerArch { .. });
     let found = with_hinges(penalties, gn, |hinges| {
         with_views(capture, engine, masks, |views| {
-            align_both(arches, *truth, views, apart, hinges, weights, &settings)
+            align_both(
+                arches,
+                *truth,
+                (views, None),
+                apart,
+                hinges,
+                weights,
+                &settings,
+            )
         })
     })?;
     Ok(found.poses)

@@ -5,6 +5,7 @@
 use nalgebra::Vector6;
 
 use super::align::FrameReads;
+use super::edge_offsets::{EdgeOffsets, ViewOffsets};
 use super::joint::{JawHinge, Terms, align_both, information_at};
 use super::penalties::Penalties;
 use super::prior::JawPrior;
@@ -39,6 +40,8 @@ pub struct JointFound {
     pub steps: usize,
     /// The masks' information about the solver's result ([`super::joint::JointAligned`]).
     pub information: Matrix12,
+    /// Each camera's offset of its masks' edges after the frame, where they are estimated.
+    pub offsets: Option<EdgeOffsets>,
 }
 
 impl JointFrame<'_> {
@@ -106,6 +109,7 @@ impl JointFrame<'_> {
         engine: &dyn EnergyEngine,
         masks: &FrameMasks,
         starts: &[ArchPoses],
+        offsets: Option<&EdgeOffsets>,
     ) -> Result<JointFound> {
         let weights = self.search.weights();
         let gn = &self.search.gauss_newton;
@@ -144,12 +148,31 @@ impl JointFrame<'_> {
                 .expect("options");
             start = *best;
         }
+        // The offsets of the cameras with masks this frame.
+        let reads = FrameReads::new(self.capture, masks);
+        let indices: Vec<usize> = (0..reads.len()).map(|k| reads.index(k)).collect();
+        // The masks are corrected by each offset's whole pixels ([`corrected`]); the samples
+        // are drawn wider by the rest.
+        let whole: Vec<f64> = offsets.map_or(Vec::new(), |o| {
+            o.whole_px().iter().map(|&k| f64::from(k)).collect()
+        });
+        let view_offsets = offsets.map(|o| {
+            let mut prior = o.of(&indices);
+            for (p, &c) in prior.px.iter_mut().zip(&indices) {
+                *p -= whole[c];
+            }
+            let applied = o.applied();
+            ViewOffsets {
+                prior,
+                applied: indices.iter().map(|&c| applied[c]).collect(),
+            }
+        });
         let found = with_hinges(self.penalties, gn, |hinges| {
             self.with_views(engine, masks, |views| {
                 align_both(
                     self.arches(),
                     start,
-                    views,
+                    (views, view_offsets.as_ref()),
                     self.apart(),
                     hinges,
                     &weights,
@@ -157,6 +180,16 @@ impl JointFrame<'_> {
                 )
             })
         })?;
+        let offsets = match (offsets, &found.offsets) {
+            (Some(before), Some(found)) => {
+                let mut found = found.clone();
+                for (p, &c) in found.px.iter_mut().zip(&indices) {
+                    *p += whole[c];
+                }
+                Some(before.after(&indices, &found))
+            }
+            _ => offsets.cloned(),
+        };
         let (found, steps, information) = (found.poses, found.steps, found.information);
         // The result, each arch's result with the other's start, and the start: where the
         // steps made an arch worse (too few samples to hold it, an edge that is another's),
@@ -178,6 +211,7 @@ impl JointFrame<'_> {
             evaluations: known.evaluations,
             steps,
             information,
+            offsets,
         })
     }
 }

@@ -582,10 +582,10 @@ fn refine(
     weights: &Weights,
     evaluations: &mut usize,
 ) -> Result<JointFound> {
-    let mut found = solver.solve(engine, masks, &[start])?;
+    let mut found = solver.solve(engine, masks, &[start], None)?;
     *evaluations += found.evaluations;
     for _ in 1..MAX_SOLVES {
-        let again = solver.solve(engine, masks, &[found.poses])?;
+        let again = solver.solve(engine, masks, &[found.poses], None)?;
         *evaluations += again.evaluations;
         let gained = total(&again, weights) < total(&found, weights) * (1.0 - MIN_GAIN);
         if total(&again, weights) <= total(&found, weights) {

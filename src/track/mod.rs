@@ -10,6 +10,7 @@
 
 pub mod align;
 pub mod contact;
+pub mod edge_offsets;
 pub mod floor;
 pub mod joint;
 pub mod joint_frame;

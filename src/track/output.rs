@@ -13,6 +13,7 @@ use std::io::Write;
 use std::path::{Path, PathBuf};
 use std::time::{Duration, Instant};
 
+use super::edge_offsets::EdgeOffsets;
 use super::state::FrameResult;
 use super::window::{Estimate, Window, settled};
 use crate::arch::ArchPoses;
@@ -136,6 +137,7 @@ pub fn record(r: &FrameResult) -> FrameRecordJson {
             information: info.transpose().iter().copied().collect(),
         }),
         hand_set: false,
+        edge_offsets: r.edge_offsets.as_ref().map(EdgeOffsets::to_json),
     }
 }
 

@@ -121,6 +121,10 @@ pub struct GaussNewtonSettings {
     /// label's area as well as the truth does. At the true pose the share is the masks' noise
     /// (0.01-0.05 on realistic masks).
     pub fallback_misdrawn: f64,
+    /// Estimate each camera's offset of its masks' edges beside the poses
+    /// (`super::edge_offsets`): a segmentation that draws the teeth wider in one camera and
+    /// narrower in another, for the whole take.
+    pub edge_offsets: bool,
 }
 
 impl Default for GaussNewtonSettings {
@@ -137,6 +141,7 @@ impl Default for GaussNewtonSettings {
             jaw_prior_nearest: 20,
             fallback_ratio: 1.5,
             fallback_misdrawn: 0.1,
+            edge_offsets: true,
         }
     }
 }

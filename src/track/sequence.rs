@@ -10,6 +10,7 @@ use nalgebra::Vector3;
 
 use super::align::{ArchAlign, align_arch};
 use super::contact::{Contact, ContactSettings};
+use super::edge_offsets::{EdgeOffsets, corrected};
 use super::joint_frame::JointFrame;
 use super::locate::relocate;
 use super::manifold::JawManifold;
@@ -280,7 +281,45 @@ impl Run<'_> {
     }
 }
 
+/// [`track_over`] the frame's masks corrected by each camera's whole pixels of edge offset
+/// ([`corrected`]); a frame after which an offset rounds to another whole pixel or comes to be
+/// applied (the take's first, where they are learned) is tracked again with them.
 fn track_frame(
+    run: &Run,
+    engine: &mut dyn EnergyEngine,
+    frame: u32,
+    masks: &FrameMasks,
+    state: &mut TrackState,
+) -> Result<FrameResult> {
+    let unknown = EdgeOffsets::unknown(run.capture.cameras().len());
+    let whole = |s: &TrackState| {
+        let o = s.edge_offsets.as_ref().unwrap_or(&unknown);
+        (o.whole_px(), o.applied())
+    };
+    let (before, saved) = (whole(state), state.clone());
+    let first = track_over(run, engine, frame, &corrected(masks, &before.0), state)?;
+    if whole(state) == before {
+        return Ok(first);
+    }
+    *state = TrackState {
+        edge_offsets: state.edge_offsets.take(),
+        ..saved
+    };
+    let again = track_over(
+        run,
+        engine,
+        frame,
+        &corrected(masks, &whole(state).0),
+        state,
+    )?;
+    Ok(FrameResult {
+        evaluations: first.evaluations + again.evaluations,
+        steps: first.steps + again.steps,
+        ..again
+    })
+}
+
+fn track_over(
     run: &Run,
     engine: &mut dyn EnergyEngine,
     frame: u32,
@@ -301,6 +340,7 @@ fn track_frame(
             evaluations: 0,
             steps: 0,
             information: None,
+            edge_offsets: state.edge_offsets.clone(),
             seconds: 0.0,
         });
     }
@@ -312,7 +352,11 @@ fn track_frame(
     // constant-velocity extrapolation, or the latest low-confidence estimate since.
     let starts = starts(state);
     if settings.search.solver == Solver::GaussNewton {
-        let found = run.joint_frame().solve(&*engine, masks, &starts)?;
+        // Each camera's offset of its masks' edges, estimated beside the poses.
+        let cameras = capture.cameras().len();
+        let offsets = (settings.search.gauss_newton.edge_offsets)
+            .then(|| (state.edge_offsets.clone()).unwrap_or_else(|| EdgeOffsets::unknown(cameras)));
+        let found = (run.joint_frame()).solve(&*engine, masks, &starts, offsets.as_ref())?;
         evaluations += found.evaluations;
         steps = found.steps;
         // A frame that fits worse than the recent ones (the confidence rule with the
@@ -336,6 +380,7 @@ fn track_frame(
         if confidence(&strict, state, worst) == Status::Ok
             && misdrawn <= settings.search.gauss_newton.fallback_misdrawn
         {
+            state.edge_offsets = found.offsets;
             let tracked = (found.poses, found.energies);
             let (poses, energies) = relocated(run, engine, masks, tracked, &mut evaluations)?;
             let information = (poses == found.poses).then_some(found.information);
@@ -481,6 +526,7 @@ fn finish(
         evaluations,
         steps: 0,
         information: None,
+        edge_offsets: state.edge_offsets.clone(),
         seconds: 0.0,
     }
 }

@@ -7,6 +7,7 @@
 use std::collections::VecDeque;
 use std::path::Path;
 
+use super::edge_offsets::EdgeOffsets;
 use crate::arch::{Arch, ArchPoses};
 use crate::energy::Energy;
 use crate::energy::smooth::Matrix12;
@@ -34,6 +35,8 @@ pub struct FrameResult {
     /// [ξ_u; ξ_j]): what the window over frames weighs the frame by. `None` without masks,
     /// for a frame found afresh by Gauss-Newton, or with the window off.
     pub information: Option<Matrix12>,
+    /// Each camera's offset of its masks' edges after this frame, where they are estimated.
+    pub edge_offsets: Option<EdgeOffsets>,
     pub seconds: f64,
 }
 
@@ -61,6 +64,9 @@ pub struct TrackState {
     /// tries to start from it (the motion may have gone on).
     pub since_good: Option<ArchPoses>,
     pub recent_area_errors: VecDeque<f64>,
+    /// Each camera's offset of its masks' edges as the frames so far estimate it
+    /// (`super::edge_offsets`); `None` where they are not estimated.
+    pub edge_offsets: Option<EdgeOffsets>,
 }
 
 impl TrackState {
@@ -71,6 +77,7 @@ impl TrackState {
             before: None,
             since_good: None,
             recent_area_errors: VecDeque::new(),
+            edge_offsets: None,
         }
     }
 
@@ -122,6 +129,13 @@ impl TrackState {
                 _ => f64::NAN,
             };
             state.advance(status, poses, worst, window);
+            if let Some(j) = &r.edge_offsets {
+                let field = format!("frame {}.edge_offsets", r.frame);
+                let offsets = EdgeOffsets::from_json(j).ok_or_else(|| {
+                    Error::invalid(path, &field, "needs as many rows of information as offsets")
+                })?;
+                state.edge_offsets = Some(offsets);
+            }
         }
         Ok(state)
     }
@@ -200,13 +214,23 @@ mod tests {
         for (i, &(status, p, area)) in frames.iter().enumerate() {
             live.advance(status, as_written(&p), area, 3);
             let area = (status != Status::NoData).then_some([area, area / 3.0]);
-            let line = record(i as u32, status, &p, area);
-            records.push(serde_json::from_str(&line).unwrap());
+            let mut line: serde_json::Value =
+                serde_json::from_str(&record(i as u32, status, &p, area)).unwrap();
+            // The cameras' edge offsets as they stood after the frame, from the fifth frame on.
+            if i >= 4 {
+                let mut offsets = EdgeOffsets::unknown(2);
+                offsets.px[1] = -0.1 * i as f64 - 1.0 / 3.0;
+                offsets.information[(0, 1)] = 1e3 / 7.0;
+                line["edge_offsets"] = serde_json::to_value(offsets.to_json()).unwrap();
+                live.edge_offsets = Some(offsets);
+            }
+            records.push(serde_json::from_value(line).unwrap());
         }
         let replayed = TrackState::replay(start, &records, Path::new("j"), 3).unwrap();
         assert_eq!(format!("{replayed:?}"), format!("{live:?}"));
         assert_eq!(replayed.recent_area_errors.len(), 3);
         assert!(replayed.before.is_some() && replayed.since_good.is_none());
+        assert!(replayed.edge_offsets.is_some());
     }
 
     #[test]
