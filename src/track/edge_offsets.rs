@@ -18,6 +18,7 @@ use nalgebra::{DMatrix, DVector};
 use crate::arch::{LOWER_BIT, UPPER_BIT};
 use crate::capture::masks::MOUTH_BIT;
 use crate::capture::{FrameMasks, LabelMask};
+use crate::energy::edge_terms::EdgeSample;
 use crate::energy::smooth::{Matrix12, Vector12, ViewSums};
 use crate::formats::EdgeOffsetsJson;
 
@@ -32,6 +33,11 @@ const MEMORY: f64 = 0.8;
 /// drawing the samples wider by such an offset moves the arches by more than it corrects
 /// (docs/tracking.md, "A segmentation tool's bias").
 pub const LEAST_PX: f64 = 0.3;
+/// What the frames must have learned of an offset before it is applied (its information, in
+/// the residuals' unit per pixel²): about a frame's worth with both arches' outlines in view. A
+/// frame that shows little measures an offset from little, and applied, it moves the arches by
+/// what it measured and measures more of it in turn.
+pub const LEAST_INFORMATION: f64 = 300.0;
 /// No offset beyond this many pixels (of the masks) is estimated: a segmentation that far off
 /// is wrong, not biased.
 const MOST_PX: f64 = 3.0;
@@ -82,10 +88,13 @@ impl EdgeOffsets {
         next
     }
 
-    /// Whether each camera's offset is applied: once the frames put it at least
-    /// [`LEAST_PX`] from zero.
+    /// Whether each camera's offset is applied: once the frames have learned enough of it
+    /// ([`LEAST_INFORMATION`]) and put it at least [`LEAST_PX`] from zero.
     pub fn applied(&self) -> Vec<bool> {
-        self.px.iter().map(|p| p.abs() >= LEAST_PX).collect()
+        let known = |k: usize| self.information[(k, k)] >= LEAST_INFORMATION;
+        (0..self.px.len())
+            .map(|k| known(k) && self.px[k].abs() >= LEAST_PX)
+            .collect()
     }
 
     /// The whole pixels by which each camera's masks are corrected ([`corrected`]): the
@@ -126,6 +135,30 @@ pub struct ViewOffsets {
     /// Whether each is applied: the samples drawn wider by it, and it estimated with the poses.
     /// Where it is not, it is only measured, the poses' step as without it.
     pub applied: Vec<bool>,
+}
+
+impl ViewOffsets {
+    /// Each view's offset the samples are drawn wider by: the applied ones'.
+    pub fn drawn_px(&self) -> DVector<f64> {
+        let px = |k: usize| {
+            if self.applied[k] {
+                self.prior.px[k]
+            } else {
+                0.0
+            }
+        };
+        DVector::from_fn(self.applied.len(), |k, _| px(k))
+    }
+}
+
+/// `samples` drawn wider by their view's offset `drawn_px` (pixels of the masks; `scale` of
+/// them to the samples' level), those beside the other arch's model excepted.
+pub fn widened(samples: &[EdgeSample], drawn_px: &DVector<f64>, scale: f64) -> Vec<EdgeSample> {
+    let mut widened = samples.to_vec();
+    for w in widened.iter_mut().filter(|w| !w.beside_other) {
+        w.point.pixel += drawn_px[w.view] / scale * w.point.normal;
+    }
+    widened
 }
 
 /// What [`step`] gives.

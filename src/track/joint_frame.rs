@@ -6,7 +6,7 @@ use nalgebra::Vector6;
 
 use super::align::FrameReads;
 use super::edge_offsets::{EdgeOffsets, ViewOffsets};
-use super::joint::{JawHinge, Terms, align_both, information_at};
+use super::joint::{JawHinge, Terms, align_both, information_at, offsets_at};
 use super::penalties::Penalties;
 use super::prior::JawPrior;
 use super::search::{GaussNewtonSettings, SearchSettings};
@@ -81,6 +81,46 @@ impl JointFrame<'_> {
         })
     }
 
+    /// The offsets `offsets` (per camera) of the cameras with masks this frame, as
+    /// [`align_both`] takes them: less the whole pixels the masks are corrected by
+    /// ([`super::edge_offsets::corrected`]), whose samples are drawn wider by the rest; and
+    /// those cameras' indices.
+    fn view_offsets(&self, masks: &FrameMasks, offsets: &EdgeOffsets) -> (Vec<usize>, ViewOffsets) {
+        let reads = FrameReads::new(self.capture, masks);
+        let indices: Vec<usize> = (0..reads.len()).map(|k| reads.index(k)).collect();
+        let (whole, applied) = (offsets.whole_px(), offsets.applied());
+        let mut prior = offsets.of(&indices);
+        for (p, &c) in prior.px.iter_mut().zip(&indices) {
+            *p -= f64::from(whole[c]);
+        }
+        let applied = indices.iter().map(|&c| applied[c]).collect();
+        (indices, ViewOffsets { prior, applied })
+    }
+
+    /// The offsets after a frame whose poses another search found at `poses`: measured
+    /// there ([`offsets_at`]).
+    pub fn measure_offsets(
+        &self,
+        engine: &dyn EnergyEngine,
+        masks: &FrameMasks,
+        poses: &ArchPoses,
+        offsets: &EdgeOffsets,
+    ) -> Result<EdgeOffsets> {
+        let (weights, gn) = (self.search.weights(), &self.search.gauss_newton);
+        let (indices, view) = self.view_offsets(masks, offsets);
+        let measured = self.with_views(engine, masks, |views| {
+            offsets_at(
+                self.arches(),
+                poses,
+                (views, &view),
+                self.apart(),
+                &weights,
+                gn,
+            )
+        })?;
+        Ok(measured.map_or_else(|| offsets.clone(), |m| carried(offsets, &indices, &m)))
+    }
+
     /// Each candidate scored on both arches: the objective of each plus the penalties, and
     /// the energies (upper, lower).
     fn score_both(
@@ -148,31 +188,13 @@ impl JointFrame<'_> {
                 .expect("options");
             start = *best;
         }
-        // The offsets of the cameras with masks this frame.
-        let reads = FrameReads::new(self.capture, masks);
-        let indices: Vec<usize> = (0..reads.len()).map(|k| reads.index(k)).collect();
-        // The masks are corrected by each offset's whole pixels ([`corrected`]); the samples
-        // are drawn wider by the rest.
-        let whole: Vec<f64> = offsets.map_or(Vec::new(), |o| {
-            o.whole_px().iter().map(|&k| f64::from(k)).collect()
-        });
-        let view_offsets = offsets.map(|o| {
-            let mut prior = o.of(&indices);
-            for (p, &c) in prior.px.iter_mut().zip(&indices) {
-                *p -= whole[c];
-            }
-            let applied = o.applied();
-            ViewOffsets {
-                prior,
-                applied: indices.iter().map(|&c| applied[c]).collect(),
-            }
-        });
+        let view_offsets = offsets.map(|o| self.view_offsets(masks, o));
         let found = with_hinges(self.penalties, gn, |hinges| {
             self.with_views(engine, masks, |views| {
                 align_both(
                     self.arches(),
                     start,
-                    (views, view_offsets.as_ref()),
+                    (views, view_offsets.as_ref().map(|v| &v.1)),
                     self.apart(),
                     hinges,
                     &weights,
@@ -180,13 +202,9 @@ impl JointFrame<'_> {
                 )
             })
         })?;
-        let offsets = match (offsets, &found.offsets) {
-            (Some(before), Some(found)) => {
-                let mut found = found.clone();
-                for (p, &c) in found.px.iter_mut().zip(&indices) {
-                    *p += whole[c];
-                }
-                Some(before.after(&indices, &found))
+        let offsets = match (offsets, &view_offsets, &found.offsets) {
+            (Some(before), Some((indices, _)), Some(found)) => {
+                Some(carried(before, indices, found))
             }
             _ => offsets.cloned(),
         };
@@ -214,6 +232,17 @@ impl JointFrame<'_> {
             offsets,
         })
     }
+}
+
+/// The take's offsets `before` after a frame measured `found` for the cameras `indices` (less
+/// the whole pixels the masks were corrected by, added back here).
+fn carried(before: &EdgeOffsets, indices: &[usize], found: &EdgeOffsets) -> EdgeOffsets {
+    let whole = before.whole_px();
+    let mut found = found.clone();
+    for (p, &c) in found.px.iter_mut().zip(indices) {
+        *p += f64::from(whole[c]);
+    }
+    before.after(indices, &found)
 }
 
 /// The energies a frame's solve has evaluated: a start, a prior's pose or the result may come

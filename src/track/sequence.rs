@@ -357,6 +357,7 @@ fn track_over(
         let offsets = (settings.search.gauss_newton.edge_offsets)
             .then(|| (state.edge_offsets.clone()).unwrap_or_else(|| EdgeOffsets::unknown(cameras)));
         let found = (run.joint_frame()).solve(&*engine, masks, &starts, offsets.as_ref())?;
+
         evaluations += found.evaluations;
         steps = found.steps;
         // A frame that fits worse than the recent ones (the confidence rule with the
@@ -455,6 +456,18 @@ fn track_over(
         true => Some(run.joint_frame().information(engine, masks, &poses)?),
         false => None,
     };
+    // The edge offsets measured where the paper's search took the frame over from
+    // Gauss-Newton: masks a pixel narrower leave a band of each tooth over the mouth interior,
+    // which sends a frame there, and it is tracked again once the offsets apply.
+    let gn = &settings.search.gauss_newton;
+    if settings.search.solver == Solver::GaussNewton && gn.edge_offsets {
+        let cameras = capture.cameras().len();
+        let before = (state.edge_offsets.take()).unwrap_or_else(|| EdgeOffsets::unknown(cameras));
+        let measured = run
+            .joint_frame()
+            .measure_offsets(engine, masks, &poses, &before)?;
+        state.edge_offsets = Some(measured);
+    }
     let result = finish(settings, state, frame, poses, energies, evaluations);
     Ok(FrameResult {
         steps,
