@@ -10,6 +10,11 @@
 //! its samples drawn that much wider ([`super::joint::align_both`]), and a take's offsets are
 //! carried from frame to frame with what the frames have learned of them (their information,
 //! partly forgotten at each frame, so that an exposure that drifts is followed).
+//!
+//! Every frame measures the offsets ([`step`]); one is applied, the samples drawn wider by it,
+//! only once learned and clear of a segmentation's own noise ([`EdgeOffsets::applied`]). The
+//! pixel counts read the masks corrected by its whole pixels ([`corrected`]), so that they
+//! weigh poses as the solver does.
 
 use std::borrow::Cow;
 

@@ -292,13 +292,13 @@ fn track_frame(
     state: &mut TrackState,
 ) -> Result<FrameResult> {
     let unknown = EdgeOffsets::unknown(run.capture.cameras().len());
-    let whole = |s: &TrackState| {
+    let corrections = |s: &TrackState| {
         let o = s.edge_offsets.as_ref().unwrap_or(&unknown);
         (o.whole_px(), o.applied())
     };
-    let (before, saved) = (whole(state), state.clone());
+    let (before, saved) = (corrections(state), state.clone());
     let first = track_over(run, engine, frame, &corrected(masks, &before.0), state)?;
-    if whole(state) == before {
+    if corrections(state) == before {
         return Ok(first);
     }
     *state = TrackState {
@@ -309,7 +309,7 @@ fn track_frame(
         run,
         engine,
         frame,
-        &corrected(masks, &whole(state).0),
+        &corrected(masks, &corrections(state).0),
         state,
     )?;
     Ok(FrameResult {
@@ -357,7 +357,6 @@ fn track_over(
         let offsets = (settings.search.gauss_newton.edge_offsets)
             .then(|| (state.edge_offsets.clone()).unwrap_or_else(|| EdgeOffsets::unknown(cameras)));
         let found = (run.joint_frame()).solve(&*engine, masks, &starts, offsets.as_ref())?;
-
         evaluations += found.evaluations;
         steps = found.steps;
         // A frame that fits worse than the recent ones (the confidence rule with the
