@@ -8,7 +8,9 @@
 //! those quadratics plus priors on two accelerations: the head's (the upper arch's second
 //! difference over consecutive frames) and the jaw's (the lower arch's pose relative to the
 //! upper's), each measured as in the solver's motion prior (displacement at the arch's centre,
-//! rotation at an arch's radius, mm). The jaw moves fast and turns sharply where an exercise
+//! rotation at an arch's radius, mm). How fast a head moves differs from take to take by more
+//! than an order of magnitude, so the head's weight is learned from the frames around each
+//! frame ([`head_weight`]). The jaw moves fast and turns sharply where an exercise
 //! changes direction, and a capture may be filmed (or read) at a rate its motion outruns, so
 //! both priors are robust: Cauchy's loss, quadratic up to about `acceleration_scale_mm` and
 //! flattening beyond, minimised by reweighting (a few linear solves a frame). A real turn then
@@ -16,7 +18,7 @@
 //! without information (no masks, or found afresh) holds its poses and the others see it as
 //! fixed. A frame's output is final once the `frames` after it are tracked.
 
-use nalgebra::{DMatrix, DVector, Matrix6, Vector3, Vector6};
+use nalgebra::{DMatrix, DVector, Matrix6, SMatrix, SVector, Vector3, Vector6};
 
 use super::prior::centre;
 use super::search::RADIUS_MM;
@@ -33,8 +35,13 @@ pub struct WindowSettings {
     /// output is final this many frames later.
     pub frames: usize,
     /// The weight of the head's acceleration (per mm² of the upper arch's second difference,
-    /// against the frames' edge information: pixel lengths per pixel of offset).
+    /// against the frames' edge information: pixel lengths per pixel of offset); with
+    /// `head_from_motion`, the most it may be.
     pub head_acceleration: f64,
+    /// Weigh the head's acceleration by how the head moves in the frames around each frame
+    /// and how much the frames scatter about that motion, rather than by one weight for
+    /// every take: a head held still gets `head_acceleration`, one that moves gets less.
+    pub head_from_motion: bool,
     /// The weight of the jaw's acceleration (per mm² of the second difference of the lower
     /// arch's pose relative to the upper's), as `head_acceleration`'s. 0: none.
     pub jaw_acceleration: f64,
@@ -48,6 +55,7 @@ impl Default for WindowSettings {
         WindowSettings {
             frames: 6,
             head_acceleration: 1e4,
+            head_from_motion: true,
             jaw_acceleration: 500.0,
             acceleration_scale_mm: 0.5,
         }
@@ -166,7 +174,11 @@ pub fn settled(estimates: &[Estimate], t: usize, window: &Window) -> ArchPoses {
             jac: vec![Matrix6::identity(); n],
             column: 0,
             metric: metric(&here.transform_point(&window.centres[0])),
-            weight: s.head_acceleration,
+            weight: if s.head_from_motion {
+                head_weight(span, &here, &window.centres[0], s.head_acceleration)
+            } else {
+                s.head_acceleration
+            },
         });
     }
     // The jaw (the lower arch in the upper's frame) of every frame relative to frame t's, in
@@ -230,6 +242,83 @@ pub fn settled(estimates: &[Estimate], t: usize, window: &Window) -> ArchPoses {
     ArchPoses {
         upper: xi_u.compose(&own.poses.upper),
         lower: xi_u.compose(&xi_j).compose(&own.poses.lower),
+    }
+}
+
+/// The head's acceleration weight for a `span` of frames, from the frames themselves (an
+/// empirical Bayes estimate): the upper arch's path over the span fitted by a quadratic in
+/// time, weighted by each frame's information about the upper arch. The scatter about the fit
+/// says what the information is worth in mm (the variance of unit weight, λ, since the edges'
+/// errors are correlated and their information is not a calibrated inverse covariance); the
+/// fit's curvature, less what the scatter alone would give it, is the head's acceleration. A
+/// Gaussian prior on an acceleration of mean square α² per direction weighs λ / α². A head
+/// whose acceleration the frames cannot tell from their scatter gets `most`.
+fn head_weight(span: &[Estimate], here: &Pose, centre: &Vector3<f64>, most: f64) -> f64 {
+    let m = metric(&here.transform_point(centre));
+    let Some(m_inv) = m.try_inverse() else {
+        return most;
+    };
+    let mid = (span.len() as f64 - 1.0) / 2.0;
+    // Each frame: its place on the path (mm at the arch's centre and radius) and the
+    // information about it, with the basis [1, τ, τ²] of the quadratic.
+    let frames: Vec<(SMatrix<f64, 6, 24>, Matrix6<f64>, Vector6<f64>)> = span
+        .iter()
+        .enumerate()
+        .filter_map(|(k, e)| {
+            let info = upper_information(&e.information?);
+            let tau = k as f64 - mid;
+            let mut basis = SMatrix::<f64, 6, 24>::zeros();
+            for (j, c) in [1.0, tau, tau * tau, tau * tau * tau]
+                .into_iter()
+                .enumerate()
+            {
+                basis
+                    .fixed_view_mut::<6, 6>(0, 6 * j)
+                    .copy_from(&(Matrix6::identity() * c));
+            }
+            let y = m * e.poses.upper.compose(&here.inverse()).log();
+            Some((basis, m_inv.transpose() * info * m_inv, y))
+        })
+        .collect();
+    let dof = 6.0 * frames.len() as f64 - 24.0;
+    if dof < 1.0 {
+        return most;
+    }
+    let (mut normal, mut rhs) = (SMatrix::<f64, 24, 24>::zeros(), SVector::<f64, 24>::zeros());
+    for (p, w, y) in &frames {
+        normal += p.transpose() * w * p;
+        rhs += p.transpose() * w * y;
+    }
+    let Some(covariance) = normal.try_inverse() else {
+        return most;
+    };
+    let fit = covariance * rhs;
+    let scatter: f64 = frames
+        .iter()
+        .map(|(p, w, y)| {
+            let r = y - p * fit;
+            (r.transpose() * w * r)[0]
+        })
+        .sum::<f64>()
+        / dof;
+    // The second difference of τ² is 2.
+    let acceleration = 2.0 * fit.fixed_rows::<6>(12);
+    let noise = 4.0 * scatter * covariance.fixed_view::<6, 6>(12, 12).trace();
+    let signal = acceleration.norm_squared() - noise;
+    if signal <= 0.0 {
+        return most;
+    }
+    (6.0 * scatter / signal).min(most)
+}
+
+/// What a frame's information says of the upper arch alone (its jaw's increment free): the
+/// Schur complement of the jaw's block.
+fn upper_information(info: &Matrix12) -> Matrix6<f64> {
+    let uu = info.fixed_view::<6, 6>(0, 0).into_owned();
+    let uj = info.fixed_view::<6, 6>(0, 6).into_owned();
+    match info.fixed_view::<6, 6>(6, 6).into_owned().cholesky() {
+        Some(jj) => uu - uj * jj.solve(&uj.transpose()),
+        None => uu,
     }
 }
 
@@ -317,6 +406,42 @@ mod tests {
             let (r, d) = p.upper.distance_to(&moving[t].poses.upper);
             assert!(r < 1e-6 && d < 1e-6, "frame {t}: moved {d} mm, {r} rad");
         }
+    }
+
+    #[test]
+    fn a_head_that_swings_is_followed_and_a_still_one_is_held() {
+        // Each frame held by its edges about as well as its noise says (±0.02 mm along x, 1e2
+        // per mm²).
+        let frames = |x: &dyn Fn(f64) -> f64| -> Vec<Estimate> {
+            (0..13)
+                .map(|k| Estimate {
+                    poses: at(x(k as f64) + if k % 2 == 0 { 0.02 } else { -0.02 }, 0.0),
+                    information: Some(Matrix12::identity() * 1e2),
+                })
+                .collect()
+        };
+        let learned = at_origins(WindowSettings::default());
+        let fixed = at_origins(WindowSettings {
+            head_from_motion: false,
+            ..WindowSettings::default()
+        });
+        let x_at = |e: &[Estimate], w: &Window| settled(e, 6, w).upper.translation.x;
+        // Swinging 3 mm each way over 30 frames, frame 6 at a turn (0.13 mm a frame²).
+        let swing = |k: f64| 3.0 * (std::f64::consts::TAU * (k - 6.0) / 30.0).cos();
+        let swinging = frames(&swing);
+        let (followed, bent) = (
+            x_at(&swinging, &learned) - 3.0,
+            x_at(&swinging, &fixed) - 3.0,
+        );
+        assert!(
+            followed.abs() < 0.03 && bent.abs() > 0.15,
+            "the turn is missed by {followed} mm, by {bent} mm with the fixed weight"
+        );
+        // Still: the noise cannot be told from motion, and averages out as with the fixed
+        // weight.
+        let still = frames(&|_| 0.0);
+        let x = x_at(&still, &learned);
+        assert!(x.abs() < 0.005, "the still head settles {x} mm off");
     }
 
     /// The head still, the jaw opening by `open[k]` mm (the lower arch lowered), each frame's
