@@ -170,7 +170,10 @@ fn a_synthetic_capture_on_the_real_scans_loads_back() {
 /// wider or narrower for the whole take), each camera's edge offset is estimated beside the
 /// poses: seed 1 (-1, +1, +1 px) 0.11 / 0.21 mm, 0.78 / 1.30 with the masks as they are; seed 3
 /// (all narrower, which sends every frame to the paper's search until the offsets apply) 0.11
-/// / 0.24, 1.20 / 1.51 before.
+/// / 0.24, 1.20 / 1.51 before. Each run lets the average joint's manifold go once its first
+/// frames lie 1-2 mm off it (12 frames, jaw median / p95 mm, before → after: seed 1 clean 0.08 /
+/// 0.12 → 0.07 / 0.12, seed 2 0.08 / 0.12 → 0.05 / 0.08, seed 1 tool 0.08 / 0.16 → 0.07 / 0.17,
+/// seed 3 tool 0.10 / 0.14 → 0.08 / 0.14).
 #[test]
 fn captures_from_another_programs_joint_are_tracked_to_their_masks() {
     let Some(scans) = scan_dir() else { return };
@@ -204,7 +207,12 @@ fn captures_from_another_programs_joint_are_tracked_to_their_masks() {
         }
         let tracks = t.path().join(format!("tracks{seed}{noise}.json"));
         let (c, o) = (cap.to_str().unwrap(), tracks.to_str().unwrap());
-        common::ok(&["track", c, "-o", o, "--backend", "cpu"]);
+        let text = common::ok(&["track", c, "-o", o, "--backend", "cpu"]);
+        // Its joint is not the average one, and the first frames say so.
+        assert!(
+            text.contains("manifold does not fit this subject"),
+            "seed {seed} {noise}: {text}"
+        );
         let score: serde_json::Value =
             serde_json::from_str(&common::ok(&["score", c, o, "--json"])).unwrap();
         let jaw = &score["jaw"]["mean_vertex_mm"];
@@ -213,7 +221,7 @@ fn captures_from_another_programs_joint_are_tracked_to_their_masks() {
             jaw["p95"].as_f64().unwrap(),
         );
         assert!(
-            median < 0.3 && p95 < 0.8,
+            median < 0.15 && p95 < 0.4,
             "seed {seed} {noise} (init.json: {init}): jaw {median} / {p95} mm (median / p95)"
         );
     }

@@ -202,6 +202,12 @@ pub fn track_summary(output: &Path, s: &Summary) {
         s.count(Status::LowConfidence),
         s.count(Status::NoData)
     );
+    if s.manifold_released {
+        println!(
+            "the jaw's manifold does not fit this subject (three frames in a row lay farther than \
+             jaw_manifold_release_mm off it): let go for the rest of the take"
+        );
+    }
     if s.tracked_now > 0 {
         let per_frame = |n: usize| n as f64 / s.tracked_now as f64;
         if s.steps > 0 {

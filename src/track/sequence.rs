@@ -123,7 +123,7 @@ pub fn track_frames(
         ContourEdges::of(capture.upper()),
         ContourEdges::of(capture.lower()),
     ];
-    let run = Run {
+    let mut run = Run {
         capture,
         settings,
         centres,
@@ -131,16 +131,9 @@ pub fn track_frames(
         penalties,
         edges,
     };
-    let mut step = |frame: u32, masks: FrameMasks, started: Instant, state: &mut TrackState| {
-        let result = track_frame(&run, engine, frame, &masks, state)?;
-        let result = FrameResult {
-            seconds: started.elapsed().as_secs_f64(),
-            ..result
-        };
-        on_frame(&result, &masks)
-    };
     if let Some(source) = source {
         for &frame in frames {
+            run.let_go_of_manifold(state);
             let started = Instant::now();
             let expected = starts(state);
             let coarse = &run.prior.coarse;
@@ -168,7 +161,15 @@ pub fn track_frames(
             }
         });
         for (frame, masks) in rx {
-            step(frame, masks?, Instant::now(), state)?;
+            let started = Instant::now();
+            run.let_go_of_manifold(state);
+            let masks = masks?;
+            let result = track_frame(&run, engine, frame, &masks, state)?;
+            let result = FrameResult {
+                seconds: started.elapsed().as_secs_f64(),
+                ..result
+            };
+            on_frame(&result, &masks)?;
         }
         Ok(())
     })
@@ -231,6 +232,14 @@ struct Run<'a> {
 }
 
 impl Run<'_> {
+    /// The jaw's manifold left out from here on where the frames so far say it does not fit
+    /// the subject (`TrackState::manifold_fit`).
+    fn let_go_of_manifold(&mut self, state: &TrackState) {
+        if state.manifold_fit.released {
+            self.penalties.manifold = None;
+        }
+    }
+
     /// The Gauss-Newton solver over both arches with this run's prior and penalties.
     fn joint_frame(&self) -> JointFrame<'_> {
         JointFrame {
@@ -384,7 +393,15 @@ fn track_over(
             let tracked = (found.poses, found.energies);
             let (poses, energies) = relocated(run, engine, masks, tracked, &mut evaluations)?;
             let information = (poses == found.poses).then_some(found.information);
-            let result = finish(settings, state, frame, poses, energies, evaluations);
+            let result = finish(
+                settings,
+                penalties.manifold.as_ref(),
+                state,
+                frame,
+                poses,
+                energies,
+                evaluations,
+            );
             return Ok(FrameResult {
                 steps,
                 information,
@@ -467,7 +484,15 @@ fn track_over(
             .measure_offsets(engine, masks, &poses, &before)?;
         state.edge_offsets = Some(measured);
     }
-    let result = finish(settings, state, frame, poses, energies, evaluations);
+    let result = finish(
+        settings,
+        penalties.manifold.as_ref(),
+        state,
+        frame,
+        poses,
+        energies,
+        evaluations,
+    );
     Ok(FrameResult {
         steps,
         information,
@@ -510,6 +535,7 @@ fn relocated(
 /// state moved on.
 fn finish(
     settings: &TrackSettings,
+    manifold: Option<&JawManifold>,
     state: &mut TrackState,
     frame: u32,
     poses: ArchPoses,
@@ -518,6 +544,7 @@ fn finish(
 ) -> FrameResult {
     let worst_area_error = energies[0].area_error().max(energies[1].area_error());
     let status = confidence(settings, state, worst_area_error);
+    let poses_written = as_written(&poses);
     let teeth_hidden = status == Status::Ok
         && energies.iter().any(|e| {
             e.boi_shown()
@@ -525,10 +552,14 @@ fn finish(
         });
     state.advance(
         status,
-        as_written(&poses),
+        poses_written,
         worst_area_error,
         settings.confidence_window,
     );
+    if let Some(m) = manifold {
+        let off_mm = m.distance_mm(&poses_written.jaw());
+        (state.manifold_fit).note(status, off_mm, settings.jaw_manifold_release_mm);
+    }
     FrameResult {
         frame,
         poses,

@@ -13,7 +13,7 @@ use super::output::TracksWriter;
 use super::overlay;
 use super::score::{ScoreReport, score};
 use super::search::Solver;
-use super::sequence::{Status, track_frames};
+use super::sequence::{Status, prior_and_penalties, track_frames};
 use super::settings::TrackSettings;
 use super::state::{FrameResult, TrackState};
 use super::window::Window;
@@ -80,6 +80,9 @@ pub struct Summary {
     pub backend: String,
     /// The search that ran (`auto` resolved for the capture).
     pub solver: Solver,
+    /// The frames said the jaw's manifold does not fit the subject, and it was let go
+    /// (`TrackState::manifold_fit`).
+    pub manifold_released: bool,
 }
 
 impl Summary {
@@ -152,11 +155,17 @@ impl<'c> Session<'c> {
             }
         };
         let state = if options.resume {
+            // The manifold the run holds the jaw to, whose fit the frames done have judged.
+            let settings = options.settings.for_capture(capture);
+            let (_, penalties) = prior_and_penalties(capture, &settings, &start);
+            let manifold =
+                (penalties.manifold.as_ref()).map(|m| (m, settings.jaw_manifold_release_mm));
             TrackState::replay(
                 start,
                 &done,
                 &options.output,
                 options.settings.confidence_window,
+                manifold,
             )?
         } else {
             TrackState::new(start)
@@ -223,6 +232,7 @@ impl<'c> Session<'c> {
             steps,
             backend: self.backend,
             solver: self.options.settings.for_capture(capture).search.solver,
+            manifold_released: self.state.manifold_fit.released,
         })
     }
 }

@@ -74,6 +74,10 @@ pub struct TrackSettings {
     /// weigh. Built from the fine grid, so off with it too; 0 turns it off.
     pub jaw_manifold_weight: f64,
     pub jaw_manifold_tolerance_mm: f64,
+    /// Three frames tracked ok in a row with the jaw farther than this (mm) from the manifold
+    /// say the subject's joint is not the one it describes, and it is let go for the rest of
+    /// the take (`state::ManifoldFit`). 0: never.
+    pub jaw_manifold_release_mm: f64,
     /// What replaces the fields above when the masks label the mouth (`masks.mouth`) and
     /// `search.mouth_weight` is above 0.
     pub labelled: LabelledSettings,
@@ -182,6 +186,7 @@ impl Default for TrackSettings {
             contact_tolerance_mm: 1.0,
             jaw_manifold_weight: 60.0,
             jaw_manifold_tolerance_mm: 0.3,
+            jaw_manifold_release_mm: 1.0,
             labelled: LabelledSettings::default(),
             window: WindowSettings::default(),
             jaw_space: None,
@@ -245,6 +250,12 @@ impl TrackSettings {
         rules.number(
             "jaw_manifold_tolerance_mm",
             self.jaw_manifold_tolerance_mm,
+            0.0,
+            100.0,
+        )?;
+        rules.number(
+            "jaw_manifold_release_mm",
+            self.jaw_manifold_release_mm,
             0.0,
             100.0,
         )?;

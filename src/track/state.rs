@@ -8,6 +8,7 @@ use std::collections::VecDeque;
 use std::path::Path;
 
 use super::edge_offsets::EdgeOffsets;
+use super::manifold::JawManifold;
 use crate::arch::{Arch, ArchPoses};
 use crate::energy::Energy;
 use crate::energy::smooth::Matrix12;
@@ -67,6 +68,41 @@ pub struct TrackState {
     /// Each camera's offset of its masks' edges as the frames so far estimate it
     /// (`super::edge_offsets`); `None` where they are not estimated.
     pub edge_offsets: Option<EdgeOffsets>,
+    /// Whether the jaw's manifold fits this subject, as the frames so far say.
+    pub manifold_fit: ManifoldFit,
+}
+
+/// Ok frames in a row whose jaw lies beyond the release distance from the manifold before it
+/// is let go: one such frame can be a wrong one, three in a row are the subject's joint.
+const FAR_FRAMES: usize = 3;
+
+/// Whether the jaw's manifold (the average joint's, or a rig's: `super::manifold`) fits this
+/// subject. The average joint's own poses lie within 0.4 mm of its subspace, and a take of
+/// such a joint tracked from realistic masks within 0.7 mm; another subject's joint lies 1-2
+/// mm off it from the first frame on, and a manifold that holds the jaw there pulls both
+/// arches off what the masks show (docs/tracking.md, "Another subject's joint"). Once
+/// [`FAR_FRAMES`] frames tracked ok in a row lie beyond the release distance
+/// (`TrackSettings::jaw_manifold_release_mm`), the manifold is let go for the rest of the take.
+#[derive(Debug, Clone, Copy, Default, PartialEq, Eq)]
+pub struct ManifoldFit {
+    /// Frames tracked ok in a row whose jaw lay beyond the release distance.
+    pub far_in_a_row: usize,
+    /// The manifold is let go: the masks alone hold the jaw from here on.
+    pub released: bool,
+}
+
+impl ManifoldFit {
+    /// A frame came out `status` with its jaw `off_mm` from the manifold.
+    pub fn note(&mut self, status: Status, off_mm: f64, release_mm: f64) {
+        if self.released || release_mm <= 0.0 || status != Status::Ok {
+            return;
+        }
+        self.far_in_a_row = match off_mm > release_mm {
+            true => self.far_in_a_row + 1,
+            false => 0,
+        };
+        self.released = self.far_in_a_row >= FAR_FRAMES;
+    }
 }
 
 impl TrackState {
@@ -78,6 +114,7 @@ impl TrackState {
             since_good: None,
             recent_area_errors: VecDeque::new(),
             edge_offsets: None,
+            manifold_fit: ManifoldFit::default(),
         }
     }
 
@@ -114,12 +151,14 @@ impl TrackState {
     }
 
     /// The state after the `records` of `path` (frames an earlier run tracked from `start`, in
-    /// order, as that run wrote them).
+    /// order, as that run wrote them), the run's jaw `manifold` with its release distance
+    /// where it has one.
     pub fn replay(
         start: ArchPoses,
         records: &[FrameRecordJson],
         path: &Path,
         window: usize,
+        manifold: Option<(&JawManifold, f64)>,
     ) -> Result<TrackState> {
         let mut state = TrackState::new(start);
         for r in records {
@@ -129,6 +168,9 @@ impl TrackState {
                 _ => f64::NAN,
             };
             state.advance(status, poses, worst, window);
+            if let Some((m, release_mm)) = manifold {
+                (state.manifold_fit).note(status, m.distance_mm(&poses.jaw()), release_mm);
+            }
             if let Some(j) = &r.edge_offsets {
                 let field = format!("frame {}.edge_offsets", r.frame);
                 let offsets = EdgeOffsets::from_json(j).ok_or_else(|| {
@@ -209,10 +251,22 @@ mod tests {
             (Status::Ok, poses(0.4, 0.1), 0.011),
             (Status::Ok, poses(0.5, 0.2), 0.012),
         ];
+        // A manifold the frames' jaws lie far off (it turns the jaw about y and z and slides it
+        // along x; theirs is turned about x and lowered): let go once three lay off it.
+        let lower = crate::anatomy::procedural_arch(false);
+        let spanned: Vec<Pose> = (0..27)
+            .map(|k| {
+                let (a, b, c) = ((k % 3) as f64, (k / 3 % 3) as f64, (k / 9) as f64);
+                Pose::from_euler_tuple(&[0.0, 0.05 * a, 0.05 * b, c, 0.0, 0.0])
+            })
+            .collect();
+        let manifold = JawManifold::new(&spanned, &lower, 60.0, 0.3);
         let mut live = TrackState::new(start);
         let mut records = Vec::new();
         for (i, &(status, p, area)) in frames.iter().enumerate() {
             live.advance(status, as_written(&p), area, 3);
+            let off_mm = manifold.distance_mm(&as_written(&p).jaw());
+            live.manifold_fit.note(status, off_mm, 1.0);
             let area = (status != Status::NoData).then_some([area, area / 3.0]);
             let mut line: serde_json::Value =
                 serde_json::from_str(&record(i as u32, status, &p, area)).unwrap();
@@ -226,18 +280,49 @@ mod tests {
             }
             records.push(serde_json::from_value(line).unwrap());
         }
-        let replayed = TrackState::replay(start, &records, Path::new("j"), 3).unwrap();
+        let replayed =
+            TrackState::replay(start, &records, Path::new("j"), 3, Some((&manifold, 1.0))).unwrap();
         assert_eq!(format!("{replayed:?}"), format!("{live:?}"));
+        assert!(replayed.manifold_fit.released);
         assert_eq!(replayed.recent_area_errors.len(), 3);
         assert!(replayed.before.is_some() && replayed.since_good.is_none());
         assert!(replayed.edge_offsets.is_some());
     }
 
     #[test]
+    fn the_manifold_is_let_go_after_three_ok_frames_in_a_row_beyond_the_release() {
+        let after = |frames: &[(Status, f64)]| {
+            let mut fit = ManifoldFit::default();
+            for &(status, off_mm) in frames {
+                fit.note(status, off_mm, 1.0);
+            }
+            fit.released
+        };
+        let (ok, low) = (Status::Ok, Status::LowConfidence);
+        assert!(after(&[(ok, 1.5), (ok, 2.0), (ok, 1.1)]));
+        // A frame near it starts the count again; one not tracked ok leaves it.
+        assert!(!after(&[
+            (ok, 1.5),
+            (ok, 2.0),
+            (ok, 0.5),
+            (ok, 1.1),
+            (ok, 1.2)
+        ]));
+        assert!(after(&[(ok, 1.5), (low, 0.2), (ok, 2.0), (ok, 1.1)]));
+        assert!(!after(&[(ok, 1.5), (low, 3.0), (low, 3.0), (ok, 1.1)]));
+        // Once let go, it stays let go.
+        assert!(after(&[(ok, 1.5), (ok, 2.0), (ok, 1.1), (ok, 0.1)]));
+        // A release distance of 0 never lets go.
+        let mut fit = ManifoldFit::default();
+        (0..5).for_each(|_| fit.note(ok, 9.0, 0.0));
+        assert!(!fit.released);
+    }
+
+    #[test]
     fn an_ok_record_without_its_area_error_cannot_be_continued_exactly() {
         let p = poses(0.0, 0.0);
         let r = serde_json::from_str(&record(0, Status::Ok, &p, None)).unwrap();
-        let e = TrackState::replay(p, &[r], Path::new("t.json"), 3).unwrap_err();
+        let e = TrackState::replay(p, &[r], Path::new("t.json"), 3, None).unwrap_err();
         assert!(e.to_string().contains("frame 0.area_error"), "{e}");
         let mut bad: serde_json::Value =
             serde_json::from_str(&record(0, Status::Ok, &p, Some([0.1, 0.2]))).unwrap();
