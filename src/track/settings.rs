@@ -76,7 +76,8 @@ pub struct TrackSettings {
     pub jaw_manifold_tolerance_mm: f64,
     /// Three frames tracked ok in a row with the jaw farther than this (mm) from the manifold
     /// say the subject's joint is not the one it describes, and it is let go for the rest of
-    /// the take (`state::ManifoldFit`). 0: never.
+    /// the take (`state::ManifoldFit`). 0: never. Only where the masks label the mouth: the
+    /// paper's one-sided energy leaves the jaw to the manifold along directions it cannot see.
     pub jaw_manifold_release_mm: f64,
     /// What replaces the fields above when the masks label the mouth (`masks.mouth`) and
     /// `search.mouth_weight` is above 0.
@@ -272,8 +273,8 @@ impl TrackSettings {
     }
 
     /// The settings a capture is tracked with: `labelled`'s in place of the fields they
-    /// replace when its masks label the mouth and the over-mouth term is on, and the solver
-    /// `auto` stands for.
+    /// replace when its masks label the mouth and the over-mouth term is on (else the jaw's
+    /// manifold is never let go), and the solver `auto` stands for.
     pub fn for_capture(&self, capture: &Capture) -> TrackSettings {
         let mut s = self.clone();
         let two_sided = capture.mouth().is_some() && self.search.mouth_weight > 0.0;
@@ -281,6 +282,10 @@ impl TrackSettings {
             s.jaw_prior_grid = self.labelled.jaw_prior_grid;
             s.jaw_prior_nearest = self.labelled.jaw_prior_nearest;
             s.search.sample_rounds = self.labelled.sample_rounds;
+        } else {
+            // The one-sided energy is blind along directions that only the manifold holds,
+            // and even another joint's holds them better than nothing (docs/tracking.md).
+            s.jaw_manifold_release_mm = 0.0;
         }
         let combined = capture.mask_mode() == MaskMode::Combined;
         s.search.solver = self.search.solver.for_masks(two_sided, combined);
