@@ -131,6 +131,10 @@ pub fn track_frames(
         penalties,
         edges,
     };
+    let mut done = |result: FrameResult, started: Instant, masks: &FrameMasks| {
+        let seconds = started.elapsed().as_secs_f64();
+        on_frame(&FrameResult { seconds, ..result }, masks)
+    };
     if let Some(source) = source {
         for &frame in frames {
             run.let_go_of_manifold(state);
@@ -143,11 +147,7 @@ pub fn track_frames(
             let (result, masks) =
                 with_second_look(capture, coarse, source, frame, &expected, state, &mut track)?;
             source.tracked(frame, &result.poses, result.status)?;
-            let result = FrameResult {
-                seconds: started.elapsed().as_secs_f64(),
-                ..result
-            };
-            on_frame(&result, &masks)?;
+            done(result, started, &masks)?;
         }
         return Ok(());
     }
@@ -164,12 +164,11 @@ pub fn track_frames(
             let started = Instant::now();
             run.let_go_of_manifold(state);
             let masks = masks?;
-            let result = track_frame(&run, engine, frame, &masks, state)?;
-            let result = FrameResult {
-                seconds: started.elapsed().as_secs_f64(),
-                ..result
-            };
-            on_frame(&result, &masks)?;
+            done(
+                track_frame(&run, engine, frame, &masks, state)?,
+                started,
+                &masks,
+            )?;
         }
         Ok(())
     })
@@ -197,26 +196,6 @@ fn first_pass_options(
         );
     }
     options
-}
-
-/// `ok`, or `low-confidence` when the frame's worst area error is above the settings' bound
-/// or jumps over the recent typical one.
-fn confidence(settings: &TrackSettings, state: &TrackState, worst_area_error: f64) -> Status {
-    let mut recent: Vec<f64> = state.recent_area_errors.iter().copied().collect();
-    recent.sort_by(f64::total_cmp);
-    let typical = recent.get(recent.len() / 2).copied();
-    // A sudden jump over the recent typical area error; the floor keeps clean data, whose
-    // area error is near zero, from tripping it.
-    let jump = typical.is_some_and(|m| {
-        recent.len() >= 3
-            && worst_area_error
-                > (settings.low_confidence_ratio * m).max(settings.low_confidence_floor)
-    });
-    if worst_area_error > settings.low_confidence_area_error || jump {
-        Status::LowConfidence
-    } else {
-        Status::Ok
-    }
 }
 
 /// What stays the same over a run: the capture, its settings, the arches' centres (in their
@@ -386,22 +365,14 @@ fn track_over(
             .iter()
             .map(|e| e.misdrawn_share(&weights))
             .fold(0.0, f64::max);
-        if confidence(&strict, state, worst) == Status::Ok
+        if state.confidence(&strict, worst) == Status::Ok
             && misdrawn <= settings.search.gauss_newton.fallback_misdrawn
         {
             state.edge_offsets = found.offsets;
             let tracked = (found.poses, found.energies);
             let (poses, energies) = relocated(run, engine, masks, tracked, &mut evaluations)?;
             let information = (poses == found.poses).then_some(found.information);
-            let result = finish(
-                settings,
-                penalties.manifold.as_ref(),
-                state,
-                frame,
-                poses,
-                energies,
-                evaluations,
-            );
+            let result = finish(run, state, frame, poses, energies, evaluations);
             return Ok(FrameResult {
                 steps,
                 information,
@@ -484,15 +455,7 @@ fn track_over(
             .measure_offsets(engine, masks, &poses, &before)?;
         state.edge_offsets = Some(measured);
     }
-    let result = finish(
-        settings,
-        penalties.manifold.as_ref(),
-        state,
-        frame,
-        poses,
-        energies,
-        evaluations,
-    );
+    let result = finish(run, state, frame, poses, energies, evaluations);
     Ok(FrameResult {
         steps,
         information,
@@ -534,16 +497,16 @@ fn relocated(
 /// The frame's result at `poses` (their energies `[upper, lower]`), its confidence, and the
 /// state moved on.
 fn finish(
-    settings: &TrackSettings,
-    manifold: Option<&JawManifold>,
+    run: &Run,
     state: &mut TrackState,
     frame: u32,
     poses: ArchPoses,
     energies: [Energy; 2],
     evaluations: usize,
 ) -> FrameResult {
+    let settings = &run.settings;
     let worst_area_error = energies[0].area_error().max(energies[1].area_error());
-    let status = confidence(settings, state, worst_area_error);
+    let status = state.confidence(settings, worst_area_error);
     let poses_written = as_written(&poses);
     let teeth_hidden = status == Status::Ok
         && energies.iter().any(|e| {
@@ -556,7 +519,7 @@ fn finish(
         worst_area_error,
         settings.confidence_window,
     );
-    if let Some(m) = manifold {
+    if let Some(m) = &run.penalties.manifold {
         let off_mm = m.distance_mm(&poses_written.jaw());
         (state.manifold_fit).note(status, off_mm, settings.jaw_manifold_release_mm);
     }

@@ -9,6 +9,7 @@ use std::path::Path;
 
 use super::edge_offsets::EdgeOffsets;
 use super::manifold::JawManifold;
+use super::settings::TrackSettings;
 use crate::arch::{Arch, ArchPoses};
 use crate::energy::Energy;
 use crate::energy::smooth::Matrix12;
@@ -115,6 +116,26 @@ impl TrackState {
             recent_area_errors: VecDeque::new(),
             edge_offsets: None,
             manifold_fit: ManifoldFit::default(),
+        }
+    }
+
+    /// `ok`, or `low-confidence` when a frame's worst area error is above the settings' bound
+    /// or jumps over the recent typical one.
+    pub fn confidence(&self, settings: &TrackSettings, worst_area_error: f64) -> Status {
+        let mut recent: Vec<f64> = self.recent_area_errors.iter().copied().collect();
+        recent.sort_by(f64::total_cmp);
+        let typical = recent.get(recent.len() / 2).copied();
+        // A sudden jump over the recent typical area error; the floor keeps clean data, whose
+        // area error is near zero, from tripping it.
+        let jump = typical.is_some_and(|m| {
+            recent.len() >= 3
+                && worst_area_error
+                    > (settings.low_confidence_ratio * m).max(settings.low_confidence_floor)
+        });
+        if worst_area_error > settings.low_confidence_area_error || jump {
+            Status::LowConfidence
+        } else {
+            Status::Ok
         }
     }
 
