@@ -246,8 +246,9 @@ pub fn settled(estimates: &[Estimate], t: usize, window: &Window) -> ArchPoses {
 }
 
 /// The head's acceleration weight for a `span` of frames, from the frames themselves (an
-/// empirical Bayes estimate): the upper arch's path over the span fitted by a quadratic in
-/// time, weighted by each frame's information about the upper arch. The scatter about the fit
+/// empirical Bayes estimate): the upper arch's path over the span fitted by a cubic in time
+/// (a quadratic's misfit to a head that swings within the span would count as scatter),
+/// weighted by each frame's information about the upper arch. The scatter about the fit
 /// says what the information is worth in mm (the variance of unit weight, λ, since the edges'
 /// errors are correlated and their information is not a calibrated inverse covariance); the
 /// fit's curvature, less what the scatter alone would give it, is the head's acceleration. A
@@ -260,7 +261,7 @@ fn head_weight(span: &[Estimate], here: &Pose, centre: &Vector3<f64>, most: f64)
     };
     let mid = (span.len() as f64 - 1.0) / 2.0;
     // Each frame: its place on the path (mm at the arch's centre and radius) and the
-    // information about it, with the basis [1, τ, τ²] of the quadratic.
+    // information about it, with the basis [1, τ, τ², τ³] of the cubic.
     let frames: Vec<(SMatrix<f64, 6, 24>, Matrix6<f64>, Vector6<f64>)> = span
         .iter()
         .enumerate()
@@ -301,7 +302,7 @@ fn head_weight(span: &[Estimate], here: &Pose, centre: &Vector3<f64>, most: f64)
         })
         .sum::<f64>()
         / dof;
-    // The second difference of τ² is 2.
+    // At the span's middle (τ = 0) the cubic's second derivative is twice its τ² term.
     let acceleration = 2.0 * fit.fixed_rows::<6>(12);
     let noise = 4.0 * scatter * covariance.fixed_view::<6, 6>(12, 12).trace();
     let signal = acceleration.norm_squared() - noise;
