@@ -74,9 +74,9 @@ pub struct TrackSettings {
     /// weigh. Built from the fine grid, so off with it too; 0 turns it off.
     pub jaw_manifold_weight: f64,
     pub jaw_manifold_tolerance_mm: f64,
-    /// Three frames tracked ok in a row with the jaw farther than this (mm) from the manifold
-    /// say the subject's joint is not the one it describes, and it is let go for the rest of
-    /// the take (`state::ManifoldFit`). 0: never. Only where the masks label the mouth: the
+    /// The last 13 frames tracked ok with the jaw farther than this (mm) from the manifold, by
+    /// their median, say the subject's joint is not the one it describes, and it is let go for
+    /// the rest of the take (`state::ManifoldFit`). 0: never. Only where the masks label the mouth: the
     /// paper's one-sided energy leaves the jaw to the manifold along directions it cannot see.
     pub jaw_manifold_release_mm: f64,
     /// What replaces the fields above when the masks label the mouth (`masks.mouth`) and
@@ -187,7 +187,7 @@ impl Default for TrackSettings {
             contact_tolerance_mm: 1.0,
             jaw_manifold_weight: 60.0,
             jaw_manifold_tolerance_mm: 0.3,
-            jaw_manifold_release_mm: 1.0,
+            jaw_manifold_release_mm: 0.8,
             labelled: LabelledSettings::default(),
             window: WindowSettings::default(),
             jaw_space: None,

@@ -175,7 +175,11 @@ pub fn settled(estimates: &[Estimate], t: usize, window: &Window) -> ArchPoses {
             column: 0,
             metric: metric(&here.transform_point(&window.centres[0])),
             weight: if s.head_from_motion {
-                head_weight(span, &here, &window.centres[0], s.head_acceleration)
+                // A whole window's frames up to the last one in it, where the take has them:
+                // at the take's end the window is cut short, and a fit to half of it would
+                // weigh the head by its noise.
+                let fitted = &estimates[last.saturating_sub(2 * s.frames)..=last];
+                head_weight(fitted, &here, &window.centres[0], s.head_acceleration)
             } else {
                 s.head_acceleration
             },
