@@ -204,8 +204,9 @@ pub fn track_summary(output: &Path, s: &Summary) {
     );
     if s.manifold_released {
         println!(
-            "the jaw's manifold does not fit this subject (13 frames tracked ok lay farther than \
-             jaw_manifold_release_mm off it, by their median): let go for the rest of the take"
+            "the jaw's manifold does not fit this subject ({} frames tracked ok lay farther than \
+             jaw_manifold_release_mm off it, by their median): let go for the rest of the take",
+            jawtrack::track::state::JUDGING_FRAMES
         );
     }
     if s.tracked_now > 0 {

@@ -76,8 +76,9 @@ pub struct TrackSettings {
     pub jaw_manifold_tolerance_mm: f64,
     /// The last 13 frames tracked ok with the jaw farther than this (mm) from the manifold, by
     /// their median, say the subject's joint is not the one it describes, and it is let go for
-    /// the rest of the take (`state::ManifoldFit`). 0: never. Only where the masks label the mouth: the
-    /// paper's one-sided energy leaves the jaw to the manifold along directions it cannot see.
+    /// the rest of the take (`state::ManifoldFit`). 0: never. Only where the masks label the
+    /// mouth: the paper's one-sided energy leaves the jaw to the manifold along directions it
+    /// cannot see.
     pub jaw_manifold_release_mm: f64,
     /// What replaces the fields above when the masks label the mouth (`masks.mouth`) and
     /// `search.mouth_weight` is above 0.

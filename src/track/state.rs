@@ -76,15 +76,14 @@ pub struct TrackState {
 /// How many of the latest frames tracked ok judge the manifold: a window's worth, so that
 /// wrong frames (a first frame placed from too little of the teeth, say) are outvoted by the
 /// right ones around them, and the judgement's memory stays flat over a long take.
-const JUDGING_FRAMES: usize = 13;
+pub const JUDGING_FRAMES: usize = 13;
 
 /// Whether the jaw's manifold (the average joint's, or a rig's: `super::manifold`) fits this
 /// subject. The average joint's own poses lie within 0.4 mm of its subspace, and those of a
 /// take of such a joint, tracked, within 0.7 mm (13 frames' median at most 0.61, on errors that
 /// persist); another subject's joint lies 1-2 mm off it from the first frame on (13 frames'
-/// median 1.0-2.0), and a manifold that holds the
-/// jaw there pulls both arches off what the masks show (docs/tracking.md, "A joint that is not
-/// the average one"). Once the median distance of the last [`JUDGING_FRAMES`] frames tracked
+/// median 1.0-2.0), and a manifold that holds the jaw there pulls both arches off what the
+/// masks show (docs/tracking.md, "A joint that is not the average one"). Once the median distance of the last [`JUDGING_FRAMES`] frames tracked
 /// ok exceeds the release distance (`TrackSettings::jaw_manifold_release_mm`), the manifold is
 /// let go for the rest of the take.
 #[derive(Debug, Clone, Default, PartialEq)]
