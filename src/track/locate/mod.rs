@@ -10,19 +10,24 @@
 //! stands upright. Which way is up along the roll is not told by a band (a half turn about the
 //! anterior axis looks alike), and neither are the arch's pitch (the cameras may look from
 //! below) or a few degrees of yaw: those are tried on a grid, each hypothesis moved until its
-//! drawn teeth's centroids triangulate to the masks', and the energy ranks them. The lower arch
-//! comes from the jaw prior on the best upper arches (both ways up, for the same reason), and
-//! from its own masks as the upper did (the prior is an average joint's, which a subject's
-//! wide-open jaw can lie millimetres from), then
-//! Gauss-Newton refines both together ([`JointFrame`]), tilting both about their left-right
+//! drawn teeth's centroids triangulate to the masks', and the energy ranks them. Where the
+//! masks label the mouth, only what the arch draws inside the lips' opening counts as drawn:
+//! the masks show nothing behind the lips. The lower arch comes from the jaw prior on the best
+//! upper arches (both ways up, for the same reason), from its own masks as the upper did, and
+//! from the prior's turns moved by the energy over a grid of offsets (the prior is an average
+//! joint's, which a subject's wide-open jaw can lie a centimetre from), then Gauss-Newton
+//! refines both together ([`JointFrame`]), tilting both about their left-right
 //! axis to get out of the valley the lips leave (they hide the gums that would tell the tilt),
 //! and the energy picks the result. Per-arch masks only: one label for both arches' teeth
 //! leaves the pair's common rotation loose.
 
-use nalgebra::{Matrix2, Rotation3, SymmetricEigen, Vector2, Vector3};
+mod centroids;
+
+use nalgebra::{Rotation3, Vector3};
 
 use rayon::prelude::*;
 
+use self::centroids::{Blob, Frame, MIN_PIXELS, View, blob, drawn_centre, views, world_frame};
 use super::align::{AlignSettings, FrameReads};
 use super::joint_frame::{JointFound, JointFrame};
 use super::penalties::Penalties;
@@ -32,25 +37,27 @@ use crate::anatomy::scan_frame::scan_frame;
 use crate::arch::{Arch, ArchPoses};
 use crate::capture::{Capture, FrameMasks, MaskMode};
 use crate::energy::contour::ContourEdges;
-use crate::energy::raster::render_target;
-use crate::energy::target::{CLASS_BODY, CLASS_BOI, CLASS_NONE};
 use crate::energy::{Energy, EnergyEngine, Weights};
 use crate::error::{Error, Result};
-use crate::geometry::{Camera, Pose, triangulate};
+use crate::geometry::{Camera, Pose};
 use crate::mesh::Mesh;
 
-/// A camera needs this many teeth pixels (at mask resolution) to take part.
-const MIN_PIXELS: u64 = 40;
 /// The pitch grid (degrees about the arch's left-right axis) and yaw grid (about its up axis).
 const PITCH_DEG: [f64; 7] = [-30.0, -20.0, -10.0, 0.0, 10.0, 20.0, 30.0];
 const YAW_DEG: [f64; 3] = [-15.0, 0.0, 15.0];
-/// How far (pixels) the upper arch's alignment looks for the masks' edges, coarse to fine:
-/// wider than tracking's first reach, since a hypothesis is centred only to a few mm.
-const REACHES_PX: [f64; 6] = [16.0, 8.0, 4.0, 2.0, 1.0, 1.0];
-/// Rolls closer than this (degrees) to one already tried are the same guess.
-const SAME_ROLL_DEG: f64 = 10.0;
-/// Centroid-matching rounds per hypothesis.
-const CENTRING_ROUNDS: usize = 2;
+/// How far (pixels) an arch's alignment looks for the masks' edges, coarse to fine: wider than
+/// tracking's first reach, since a hypothesis is centred only to several mm (about a centimetre
+/// where the lips hide much of the arch).
+const REACHES_PX: [f64; 8] = [48.0, 32.0, 16.0, 8.0, 4.0, 2.0, 1.0, 1.0];
+/// Jaw turns of the average joint closer than this (degrees) to one already tried are the
+/// same: the offset grid and the solver take up the rest.
+const SAME_TURN_DEG: f64 = 5.0;
+/// The offsets (mm, step and reach per axis) a lower arch carried by the average joint is moved
+/// by, coarse to fine: a subject's joint carries a wide-open jaw up to about a centimetre from
+/// where the average one does.
+const OFFSET_GRID_MM: [(f64, f64); 3] = [(4.0, 8.0), (2.0, 2.0), (1.0, 1.0)];
+/// Centroid-matching rounds per hypothesis, at most.
+const CENTRING_ROUNDS: usize = 4;
 /// How many upper-arch hypotheses go on to the solver, and lower-arch ones beside the prior's.
 const KEEP: usize = 4;
 const KEEP_LOWER: usize = 2;
@@ -72,161 +79,6 @@ pub struct Located {
     pub evaluations: usize,
     /// The worse arch's objective per mask pixel: 0 for a perfect fit.
     pub misfit: f64,
-}
-
-/// One camera's teeth pixels: their centroid and their long axis (unit), in pixels
-/// at mask resolution.
-struct Blob<'a> {
-    camera: &'a Camera,
-    centroid: Vector2<f64>,
-    axis: Vector2<f64>,
-}
-
-fn blob<'a>(camera: &'a Camera, data: &[u8], width: u32, bits: u8) -> Option<Blob<'a>> {
-    let (mut n, mut sum, mut sq) = (0u64, Vector2::zeros(), Matrix2::zeros());
-    for (i, &v) in data.iter().enumerate() {
-        if v & bits != 0 {
-            let p = Vector2::new(
-                (i as u32 % width) as f64 + 0.5,
-                (i as u32 / width) as f64 + 0.5,
-            );
-            n += 1;
-            sum += p;
-            sq += p * p.transpose();
-        }
-    }
-    if n < MIN_PIXELS {
-        return None;
-    }
-    let centroid = sum / n as f64;
-    let cov = sq / n as f64 - centroid * centroid.transpose();
-    let eigen = SymmetricEigen::new(cov);
-    let major = if eigen.eigenvalues[0] >= eigen.eigenvalues[1] {
-        0
-    } else {
-        1
-    };
-    Some(Blob {
-        camera,
-        centroid,
-        axis: eigen.eigenvectors.column(major).into_owned(),
-    })
-}
-
-/// The world direction of the ray through pixel `px`.
-fn ray(camera: &Camera, px: Vector2<f64>) -> Vector3<f64> {
-    let n = camera.pixel_to_normalised(px);
-    camera.camera_from_world.rotation.inverse() * Vector3::new(n.x, n.y, 1.0)
-}
-
-/// The unit vector perpendicular to `z` that lies closest to every plane of `normals` (the
-/// least-squares null direction within the plane perpendicular to `z`).
-fn in_planes(normals: &[Vector3<f64>], z: &Vector3<f64>) -> Vector3<f64> {
-    let e1 = z
-        .cross(&Vector3::x())
-        .try_normalize(1e-6)
-        .unwrap_or_else(|| z.cross(&Vector3::y()).normalize());
-    let e2 = z.cross(&e1);
-    let mut m = Matrix2::zeros();
-    for n in normals {
-        let v = Vector2::new(n.dot(&e1), n.dot(&e2));
-        m += v * v.transpose();
-    }
-    let eigen = SymmetricEigen::new(m);
-    let minor = if eigen.eigenvalues[0] <= eigen.eigenvalues[1] {
-        0
-    } else {
-        1
-    };
-    let c = eigen.eigenvectors.column(minor);
-    (e1 * c[0] + e2 * c[1]).normalize()
-}
-
-/// Where the arches' hypotheses start: the teeth's triangulated centroid and the world axes
-/// each roll guess gives (columns: left, up, anterior).
-struct Frame {
-    teeth: Vector3<f64>,
-    anterior: Vector3<f64>,
-    axes: Vec<Rotation3<f64>>,
-}
-
-/// `None` when the centroids do not triangulate (rays that do not meet in front of the
-/// cameras).
-fn world_frame(blobs: &[Blob]) -> Option<Frame> {
-    let views: Vec<_> = blobs.iter().map(|b| (b.camera, b.centroid)).collect();
-    let teeth = triangulate(&views).ok()?;
-    let centres: Vector3<f64> = blobs
-        .iter()
-        .map(|b| b.camera.centre_world())
-        .sum::<Vector3<f64>>()
-        / blobs.len() as f64;
-    let anterior = (centres - teeth).normalize();
-    let normals: Vec<_> = blobs
-        .iter()
-        .map(|b| {
-            ray(b.camera, b.centroid)
-                .cross(&ray(b.camera, b.centroid + b.axis * 10.0))
-                .normalize()
-        })
-        .collect();
-    let from_band = in_planes(&normals, &anterior);
-    // The cameras' up (image −y) averaged, as a left-right axis: up × anterior.
-    let up: Vector3<f64> = blobs
-        .iter()
-        .map(|b| b.camera.camera_from_world.rotation.inverse() * -Vector3::y())
-        .sum();
-    let from_cameras = up.cross(&anterior).try_normalize(1e-6);
-    let mut lefts = vec![from_band];
-    if let Some(l) = from_cameras
-        && l.dot(&from_band).abs() < SAME_ROLL_DEG.to_radians().cos()
-    {
-        lefts.push(l);
-    }
-    let axes = lefts
-        .iter()
-        .flat_map(|&l| [l, -l])
-        .map(|left| {
-            let left = (left - anterior * anterior.dot(&left)).normalize();
-            let up = anterior.cross(&left);
-            Rotation3::from_matrix_unchecked(nalgebra::Matrix3::from_columns(&[left, up, anterior]))
-        })
-        .collect();
-    Some(Frame {
-        teeth,
-        anterior,
-        axes,
-    })
-}
-
-/// The pixels `mesh` at `pose` draws as teeth (its BOI, or all of it without one): their
-/// centroids triangulated.
-fn drawn_centre(mesh: &Mesh, pose: &Pose, cameras: &[&Camera]) -> Option<Vector3<f64>> {
-    let has_boi = mesh.boi.iter().any(|&b| b);
-    let mut views = Vec::new();
-    for cam in cameras {
-        let target = render_target(cam, &[(mesh, pose, CLASS_BODY, CLASS_BOI)]);
-        let (mut n, mut sum) = (0u64, Vector2::zeros());
-        for (i, &c) in target.class.iter().enumerate() {
-            let teeth = if has_boi {
-                c == CLASS_BOI
-            } else {
-                c != CLASS_NONE
-            };
-            if teeth {
-                n += 1;
-                sum += Vector2::new(
-                    (i as u32 % cam.width) as f64 + 0.5,
-                    (i as u32 / cam.width) as f64 + 0.5,
-                );
-            }
-        }
-        if n >= MIN_PIXELS {
-            views.push((*cam, sum / n as f64));
-        }
-    }
-    (views.len() >= 2)
-        .then(|| triangulate(&views).ok())
-        .flatten()
 }
 
 /// A jaw pose (upper_from_lower) that puts each arch on the side of the other its `up` axes
@@ -319,7 +171,7 @@ fn find(
     let blobs = |bits: u8| -> Vec<Blob> {
         cameras
             .iter()
-            .filter_map(|(c, m)| blob(c, &m.data, m.width, bits))
+            .filter_map(|(c, m)| blob(c, m, bits))
             .collect()
     };
     let teeth = blobs(teeth_bits);
@@ -336,7 +188,8 @@ fn find(
     let Some(frame) = world_frame(upper_seen) else {
         return Ok(Err(NotFound::Unplaced));
     };
-    let seen: Vec<&Camera> = upper_seen.iter().map(|b| b.camera).collect();
+    let opening = capture.mouth().is_some();
+    let seen = views(upper_seen, opening);
 
     let (upper, lower) = (capture.upper(), capture.lower());
     let weights = settings.search.weights();
@@ -352,7 +205,8 @@ fn find(
     let hypotheses = arch_hypotheses(
         Arch::Upper,
         (upper, &edges[0]),
-        &frame,
+        &grid_starts(upper, &frame),
+        &frame.teeth,
         &seen,
         &reads,
         &weights,
@@ -365,36 +219,6 @@ fn find(
         .collect();
     let mut evaluations = candidates.len();
     let ranked = ranked_by_energy(engine, Arch::Upper, &candidates, &weights)?;
-    // The lower arch from its own masks too: a subject's wide-open jaw can lie farther from
-    // all of the average joint's poses than the solver reaches.
-    let lower_blobs = blobs(Arch::Lower.mask_bit());
-    let lower_own: Vec<Pose> = match world_frame(&lower_blobs) {
-        Some(lower_frame) if lower_blobs.len() >= 2 => {
-            let seen: Vec<&Camera> = lower_blobs.iter().map(|b| b.camera).collect();
-            let found = arch_hypotheses(
-                Arch::Lower,
-                (lower, &edges[1]),
-                &lower_frame,
-                &seen,
-                &reads,
-                &weights,
-            );
-            let with_upper: Vec<ArchPoses> = found
-                .iter()
-                .map(|&lower| ArchPoses {
-                    upper: ranked[0].1,
-                    lower,
-                })
-                .collect();
-            evaluations += with_upper.len();
-            ranked_by_energy(engine, Arch::Lower, &with_upper, &weights)?
-                .into_iter()
-                .take(KEEP_LOWER)
-                .map(|(_, p)| p)
-                .collect()
-        }
-        _ => Vec::new(),
-    };
     // Which side of each arch the other lies on is the meshes' own business (their crowns face
     // each other): both ways, for each arch, and the energy decides.
     let lower_thinnest = lower.principal_axes().1[0];
@@ -414,6 +238,51 @@ fn find(
             })
         })
         .collect();
+    // The lower arch from its own masks too: a subject's wide-open jaw can lie farther from
+    // all of the average joint's poses than the solver reaches. Its hypotheses are the grid's,
+    // and the turns the average joint gives it under the best upper arch, each moved to where
+    // the energy says: a joint turns the jaw much as any other does, while where it carries a
+    // wide-open one differs by up to a centimetre.
+    let lower_blobs = blobs(Arch::Lower.mask_bit());
+    let lower_own: Vec<Pose> = match world_frame(&lower_blobs) {
+        Some(lower_frame) if lower_blobs.len() >= 2 => {
+            let seen = views(&lower_blobs, opening);
+            let mut jaws: Vec<Pose> = Vec::new();
+            for jaw in priors.iter().flat_map(|p| &p.coarse) {
+                if jaws
+                    .iter()
+                    .all(|j| j.rotation.angle_to(&jaw.rotation) > SAME_TURN_DEG.to_radians())
+                {
+                    jaws.push(*jaw);
+                }
+            }
+            let carried = carried_by_jaws(engine, &ranked[0].1, &jaws, &weights, &mut evaluations)?;
+            let found = arch_hypotheses(
+                Arch::Lower,
+                (lower, &edges[1]),
+                &grid_starts(lower, &lower_frame),
+                &lower_frame.teeth,
+                &seen,
+                &reads,
+                &weights,
+            );
+            let with_upper: Vec<ArchPoses> = found
+                .iter()
+                .map(|&lower| ArchPoses {
+                    upper: ranked[0].1,
+                    lower,
+                })
+                .collect();
+            evaluations += with_upper.len();
+            ranked_by_energy(engine, Arch::Lower, &with_upper, &weights)?
+                .into_iter()
+                .take(KEEP_LOWER)
+                .map(|(_, p)| p)
+                .chain(carried)
+                .collect()
+        }
+        _ => Vec::new(),
+    };
     let mut best: Option<Located> = None;
     for &(_, upper_pose) in ranked.iter().take(KEEP) {
         let mut starts = Vec::new();
@@ -503,44 +372,59 @@ fn find(
     Ok(Ok(best))
 }
 
-/// An arch's hypotheses in `frame` (the roll guesses its masks' band gives): its scan frame
-/// turned to each roll and to each pitch and yaw of the grid, centred until its drawn teeth's
-/// centroids triangulate to the masks' (in the cameras `seen`), then aligned to its own masks
-/// alone.
-fn arch_hypotheses(
-    arch: Arch,
-    (mesh, edges): (&Mesh, &ContourEdges),
-    frame: &Frame,
-    seen: &[&Camera],
-    reads: &FrameReads,
-    weights: &Weights,
-) -> Vec<Pose> {
+/// Where an arch's hypotheses in `frame` start (the roll guesses its masks' band gives): its
+/// scan frame turned to each roll and to each pitch and yaw of the grid, its teeth on the
+/// masks' triangulated centroid.
+fn grid_starts(mesh: &Mesh, frame: &Frame) -> Vec<Pose> {
     let scan = scan_frame(mesh, &mesh.principal_axes().1[0]);
     let anchor = mesh
         .boi_centroid()
         .unwrap_or_else(|| mesh.principal_axes().0);
-    let mut rotations = Vec::new();
+    let mut starts = Vec::new();
     for axes in &frame.axes {
         for pitch in PITCH_DEG {
             for yaw in YAW_DEG {
                 let turn = Rotation3::from_axis_angle(&Vector3::y_axis(), yaw.to_radians())
                     * Rotation3::from_axis_angle(&Vector3::x_axis(), pitch.to_radians());
-                rotations.push(axes * turn * scan);
+                let rotation = axes * turn * scan;
+                starts.push(Pose::new(rotation, frame.teeth - rotation * anchor));
             }
         }
     }
+    starts
+}
+
+/// An arch's hypotheses from `starts`: each moved while that brings its drawn teeth's
+/// centroids, triangulated, nearer the masks' (`teeth`, in the cameras `seen`), then aligned
+/// to its own masks alone. A move is kept only where it brings them nearer: the part of an arch
+/// the lips' opening shows changes as it moves, and with it the drawn centroid.
+fn arch_hypotheses(
+    arch: Arch,
+    (mesh, edges): (&Mesh, &ContourEdges),
+    starts: &[Pose],
+    teeth: &Vector3<f64>,
+    seen: &[View],
+    reads: &FrameReads,
+    weights: &Weights,
+) -> Vec<Pose> {
     let align_settings = AlignSettings {
         reaches_px: REACHES_PX.to_vec(),
         ..AlignSettings::default()
     };
-    rotations
+    starts
         .par_iter()
-        .map(|&rotation| {
-            let mut pose = Pose::new(rotation, frame.teeth - rotation * anchor);
+        .map(|&start| {
+            let mut pose = start;
+            let mut off = drawn_centre(arch, mesh, &pose, seen).map(|d| teeth - d);
             for _ in 0..CENTRING_ROUNDS {
-                match drawn_centre(mesh, &pose, seen) {
-                    Some(drawn) => pose.translation += frame.teeth - drawn,
-                    None => break,
+                let Some(step) = off else { break };
+                let moved = Pose::new(pose.rotation, pose.translation + step);
+                match drawn_centre(arch, mesh, &moved, seen).map(|d| teeth - d) {
+                    Some(after) if after.norm() < step.norm() => {
+                        pose = moved;
+                        off = Some(after);
+                    }
+                    _ => break,
                 }
             }
             reads
@@ -548,6 +432,57 @@ fn arch_hypotheses(
                 .pose
         })
         .collect()
+}
+
+/// The lower arch turned by each of `jaws` under `upper` and moved, by the energy, to where its
+/// masks say: a grid of offsets, coarse to fine, about the joint's own position. The best
+/// `KEEP_LOWER` turns, each at its best offset.
+fn carried_by_jaws(
+    engine: &dyn EnergyEngine,
+    upper: &Pose,
+    jaws: &[Pose],
+    weights: &Weights,
+    evaluations: &mut usize,
+) -> Result<Vec<Pose>> {
+    let mut best: Vec<(f64, Pose)> = jaws
+        .iter()
+        .map(|j| (f64::INFINITY, upper.compose(j)))
+        .collect();
+    for (stage, &(step, reach)) in OFFSET_GRID_MM.iter().enumerate() {
+        if stage == 1 {
+            best.sort_by(|a, b| a.0.total_cmp(&b.0));
+            best.truncate(KEEP_LOWER);
+        }
+        let n = (reach / step).round() as i32;
+        let offsets: Vec<Vector3<f64>> = (-n..=n)
+            .flat_map(|x| (-n..=n).flat_map(move |y| (-n..=n).map(move |z| (x, y, z))))
+            .map(|(x, y, z)| Vector3::new(x as f64, y as f64, z as f64) * step)
+            .collect();
+        let options: Vec<ArchPoses> = best
+            .iter()
+            .flat_map(|(_, lower)| {
+                offsets.iter().map(|d| ArchPoses {
+                    upper: *upper,
+                    lower: Pose::new(lower.rotation, lower.translation + d),
+                })
+            })
+            .collect();
+        *evaluations += options.len();
+        let energies = engine.evaluate(Arch::Lower, &options)?;
+        for (k, chunk) in options
+            .chunks(offsets.len())
+            .zip(energies.chunks(offsets.len()))
+            .enumerate()
+        {
+            for (option, energy) in chunk.0.iter().zip(chunk.1) {
+                let objective = energy.objective(weights);
+                if objective < best[k].0 {
+                    best[k] = (objective, option.lower);
+                }
+            }
+        }
+    }
+    Ok(best.into_iter().map(|(_, p)| p).collect())
 }
 
 /// `arch`'s pose in each of `options`, best first by its objective there.

@@ -3,16 +3,18 @@
 //! are read on a thread one frame ahead; every finished frame goes to an observer (the output
 //! writer and the progress bar), so memory does not grow with the masks of past frames.
 
+mod relocated;
+
 use std::sync::mpsc::sync_channel;
 use std::time::Instant;
 
 use nalgebra::Vector3;
 
+use self::relocated::{relocated, window_information};
 use super::align::{ArchAlign, align_arch};
 use super::contact::{Contact, ContactSettings};
 use super::edge_offsets::{EdgeOffsets, corrected};
 use super::joint_frame::JointFrame;
-use super::locate::relocate;
 use super::manifold::JawManifold;
 use super::mask_source::{MaskSource, with_second_look};
 use super::penalties::Penalties;
@@ -371,7 +373,11 @@ fn track_over(
             state.edge_offsets = found.offsets;
             let tracked = (found.poses, found.energies);
             let (poses, energies) = relocated(run, engine, masks, tracked, &mut evaluations)?;
-            let information = (poses == found.poses).then_some(found.information);
+            // A frame found afresh has the masks' information at its own poses.
+            let information = match poses == found.poses {
+                true => Some(found.information),
+                false => window_information(run, engine, masks, &poses)?,
+            };
             let result = finish(run, state, frame, poses, energies, evaluations);
             return Ok(FrameResult {
                 steps,
@@ -439,10 +445,7 @@ fn track_over(
         &mut evaluations,
     )?;
     // What the masks say about the poses found, for the window over frames.
-    let information = match settings.window.frames > 0 {
-        true => Some(run.joint_frame().information(engine, masks, &poses)?),
-        false => None,
-    };
+    let information = window_information(run, engine, masks, &poses)?;
     // The edge offsets measured where the paper's search took the frame over from
     // Gauss-Newton: masks a pixel narrower leave a band of each tooth over the mouth interior,
     // which sends a frame there, and it is tracked again once the offsets apply.
@@ -461,37 +464,6 @@ fn track_over(
         information,
         ..result
     })
-}
-
-/// A frame lost (worse than any tracked frame may be) has its arches looked for afresh, from
-/// its masks alone ([`relocate`]); they are taken where they fit better, penalties included.
-fn relocated(
-    run: &Run,
-    engine: &dyn EnergyEngine,
-    masks: &FrameMasks,
-    (poses, energies): (ArchPoses, [Energy; 2]),
-    evaluations: &mut usize,
-) -> Result<(ArchPoses, [Energy; 2])> {
-    let settings = &run.settings;
-    let worst = energies.iter().map(Energy::area_error).fold(0.0, f64::max);
-    if worst <= settings.relocate_area_error {
-        return Ok((poses, energies));
-    }
-    let Some(found) = relocate(run.capture, engine, masks, settings, &run.edges)? else {
-        return Ok((poses, energies));
-    };
-    *evaluations += found.evaluations;
-    let weights = settings.search.weights();
-    let total = |p: &ArchPoses, e: &[Energy; 2]| {
-        e[0].objective(&weights) + e[1].objective(&weights) + run.penalties.of(p)
-    };
-    Ok(
-        if total(&found.poses, &found.energies) < total(&poses, &energies) {
-            (found.poses, found.energies)
-        } else {
-            (poses, energies)
-        },
-    )
 }
 
 /// The frame's result at `poses` (their energies `[upper, lower]`), its confidence, and the
