@@ -27,13 +27,16 @@ would not on a user's capture. This program shares no code with jawtrack (Python
 
 Usage:
   other_capture.py OUT --scans DIR [--frames 34] [--seed S] [--noise clean|tool|rough]
-                       [--distortion K1] [--cameras 3]
+                       [--distortion K1] [--cameras 3] [--photos none|clean|hard]
 
 Writes OUT/capture.json, cameras/, meshes/ (PLY + .boi.json), masks/, init.json (the first
-frame's true poses), gt/poses.json. Needs numpy.
+frame's true poses), gt/poses.json. Needs numpy. With `--photos`, colour pictures instead of
+masks (images/, drawn by benches/other_photos.py), and the true labels in gt/masks/.
 """
 import argparse, json, math, os, struct, zlib
 import numpy as np
+
+import other_photos
 
 UPPER, LOWER, MOUTH = 1, 2, 3
 
@@ -129,9 +132,11 @@ def project(cam, p):
     return np.stack([u, w], 1), pc[:, 2]
 
 
-def rasterise(cam, items, w, h):
-    """items: (world vertices, faces, label). The label image, nearest surface wins."""
-    pix, depth, lab = [], [], []
+def rasterise(cam, items, w, h, faces_too=False):
+    """items: (world vertices, faces, label). The label image, nearest surface wins (and, with
+    faces_too, the face drawn at each pixel: its index among all items' faces in order, -1)."""
+    pix, depth, lab, fid = [], [], [], []
+    offset = 0
     for verts, faces, label in items:
         uv, z = project(cam, verts)
         a, b, c = uv[faces[:, 0]], uv[faces[:, 1]], uv[faces[:, 2]]
@@ -159,13 +164,19 @@ def rasterise(cam, items, w, h):
                     pix.append((py * w + px)[inside])
                     depth.append(inv[inside])
                     lab.append(np.full(inside.sum(), label, np.uint8))
+                    fid.append(offset + sel[inside])
+        offset += len(faces)
     out = np.zeros(w * h, np.uint8)
+    drawn = np.full(w * h, -1, np.int64)
     if pix:
-        pix, depth, lab = np.concatenate(pix), np.concatenate(depth), np.concatenate(lab)
+        pix, depth, lab, fid = (np.concatenate(x) for x in (pix, depth, lab, fid))
         order = np.lexsort((-depth, pix))
         first = np.ones(len(order), bool)
         first[1:] = pix[order][1:] != pix[order][:-1]
         out[pix[order][first]] = lab[order][first]
+        drawn[pix[order][first]] = fid[order][first]
+    if faces_too:
+        return out.reshape(h, w), drawn.reshape(h, w)
     return out.reshape(h, w)
 
 
@@ -229,15 +240,16 @@ def grow(mask, px):
 
 
 def write_png(path, image):
-    """An 8-bit grey PNG."""
-    h, w = image.shape
+    """An 8-bit grey (h x w) or RGB (h x w x 3) PNG."""
+    h, w = image.shape[:2]
+    colour = 2 if image.ndim == 3 else 0
     raw = b"".join(b"\x00" + image[y].tobytes() for y in range(h))
 
     def chunk(tag, data):
         return struct.pack(">I", len(data)) + tag + data + struct.pack(">I", zlib.crc32(tag + data) & 0xFFFFFFFF)
 
     with open(path, "wb") as f:
-        f.write(b"\x89PNG\r\n\x1a\n" + chunk(b"IHDR", struct.pack(">IIBBBBB", w, h, 8, 0, 0, 0, 0))
+        f.write(b"\x89PNG\r\n\x1a\n" + chunk(b"IHDR", struct.pack(">IIBBBBB", w, h, 8, colour, 0, 0, 0))
                 + chunk(b"IDAT", zlib.compress(raw, 6)) + chunk(b"IEND", b""))
 
 
@@ -254,6 +266,8 @@ def main():
     ap.add_argument("--noise", choices=["clean", "tool", "rough"], default="clean")
     ap.add_argument("--distortion", type=float, default=0.0)
     ap.add_argument("--cameras", type=int, default=3)
+    ap.add_argument("--photos", choices=["none", "clean", "hard"], default="none",
+                    help="write colour pictures (images/) and the true labels to gt/masks/ instead of masks")
     ap.add_argument("--boi-depth", type=float, default=12.0,
                     help="how far back from the frontmost tooth (mm) the incisal band reaches")
     a = ap.parse_args()
@@ -321,9 +335,9 @@ def main():
 
     bias = {name: int(rng.choice([-1, 1])) for name in names}
     phase = rng.uniform(0, 2 * math.pi, 8)
-    gt = []
-    w, h = 960, 540
-    for i in range(a.frames):
+
+    def poses_at(i):
+        """The arches' poses (r_u, t_u, r_l, t_l) at frame i (fractional within a shutter)."""
         s = i / 33.0  # the pace: one cycle of the head's drift every 34 frames, whatever the count
         # The head: a slow drift and nod.
         r_head = rot([1, 0, 0], math.radians(4 * math.sin(2 * math.pi * s + phase[0]))) @ \
@@ -341,8 +355,15 @@ def main():
             if clearance(upper_low, vl_probe @ r_jaw.T + origin) >= 0.0 or open_deg > 40:
                 break
             open_deg += 0.25
-        r_u, t_u = r_head, t_head
-        r_l, t_l = r_head @ r_jaw, r_head @ origin + t_head
+        return r_head, t_head, r_head @ r_jaw, r_head @ origin + t_head
+
+    if a.photos != "none":
+        colours = other_photos.subject(rng)
+        normals_u, normals_l = other_photos.face_normals(vu, fu), other_photos.face_normals(vl, fl)
+    gt = []
+    w, h = 960, 540
+    for i in range(a.frames):
+        r_u, t_u, r_l, t_l = poses_at(i)
         gt.append({"frame": i, "upper": pose_json(r_u, t_u), "lower": pose_json(r_l, t_l)})
         wu, wl = vu @ r_u.T + t_u, vl @ r_l.T + t_l
         for cam, name in zip(cams, names):
@@ -351,6 +372,27 @@ def main():
             bottom, _ = project(cam, lip_l @ r_l.T + t_l)
             opening_px = fill_polygon(lip_opening(top, bottom, LIP_XS), w, h)
             out = np.where(opening_px, np.where(labels > 0, labels, MOUTH), 0).astype(np.uint8)
+            if a.photos != "none":
+                # The picture, drawn at twice the size over the shutter's poses; the labels
+                # (the middle pose's) are the truth, and the masks are left to segment.
+                big = dict(cam, scale=1.0)
+                renders = []
+                for di in ([-0.25, 0.0, 0.25] if a.photos == "hard" else [0.0]):
+                    ru, tu, rl, tl = poses_at(i + di)
+                    su, sl = vu @ ru.T + tu, vl @ rl.T + tl
+                    look, fid = rasterise(big, [(su, fu, UPPER), (sl, fl, LOWER)], 2 * w, 2 * h, faces_too=True)
+                    top2, _ = project(big, lip_u @ ru.T + tu)
+                    bottom2, _ = project(big, lip_l @ rl.T + tl)
+                    opening2 = fill_polygon(lip_opening(top2, bottom2, LIP_XS), 2 * w, 2 * h)
+                    normals = np.concatenate([normals_u @ ru.T, normals_l @ rl.T])
+                    renders.append(other_photos.shade(look, fid, normals, opening2, colours,
+                                                      -cam["R"][2], a.photos == "hard", rng))
+                picture = other_photos.photo(renders, colours, i, a.frames, a.photos == "hard", rng)
+                for sub, image in [("images", picture), (os.path.join("gt", "masks"), out)]:
+                    d = os.path.join(a.out, sub, name)
+                    os.makedirs(d, exist_ok=True)
+                    write_png(os.path.join(d, "%06d.png" % i), image)
+                continue
             if a.noise == "tool":
                 for lab in (UPPER, LOWER):
                     m = out == lab

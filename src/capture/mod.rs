@@ -3,6 +3,7 @@
 
 mod camera;
 pub mod json;
+pub mod light;
 pub mod masks;
 mod open;
 mod paths;

@@ -2,7 +2,8 @@
 //! the room darken in some frame; the frames where it does give each camera's offset.
 //!
 //! A frame's mean brightness is a mix of the light before and after the switch, in
-//! proportion to how much of its exposure each covers. Summing the bright share of the frames
+//! proportion to how much of its exposure each covers: the light, decoded from the values the
+//! camera wrote ([`crate::capture::light`]), not the values, which the transfer curve bends. Summing the bright share of the frames
 //! around the step gives the switch time within a frame, so cameras are placed to a fraction
 //! of a frame apart; the whole-frame part becomes `frames.offsets`. The fraction assumes an
 //! exposure as long as the frame period; a shorter shutter shows a steeper step, read as the
@@ -12,6 +13,7 @@ use std::path::{Path, PathBuf};
 
 use rayon::prelude::*;
 
+use crate::capture::light::linear_table;
 use crate::error::{Error, Result};
 
 /// The image files of one camera's folder (images/<camera>/<frame:06>.png|jpg), by number.
@@ -46,9 +48,10 @@ pub fn frame_files(dir: &Path) -> Result<Vec<(u32, PathBuf)>> {
     Ok(out)
 }
 
-/// Mean brightness (0-255 luma) of every frame, in the files' order; `done` is called after
-/// each frame.
+/// Mean brightness (linear light, 255 the brightest) of every frame, in the files' order;
+/// `done` is called after each frame.
 pub fn brightness(files: &[(u32, PathBuf)], done: &(dyn Fn() + Sync)) -> Result<Vec<f64>> {
+    let light = linear_table();
     files
         .par_iter()
         .map(|(_, path)| {
@@ -56,10 +59,16 @@ pub fn brightness(files: &[(u32, PathBuf)], done: &(dyn Fn() + Sync)) -> Result<
                 path: path.clone(),
                 problem: e.to_string(),
             })?;
-            let luma = img.into_luma8();
-            let sum: u64 = luma.as_raw().iter().map(|&v| v as u64).sum();
+            let rgb = img.into_rgb8();
+            let sum: f64 = rgb
+                .pixels()
+                .map(|p| {
+                    let [r, g, b] = p.0.map(|v| light[v as usize] as f64);
+                    0.2126 * r + 0.7152 * g + 0.0722 * b
+                })
+                .sum();
             done();
-            Ok(sum as f64 / luma.as_raw().len().max(1) as f64)
+            Ok(255.0 * sum / (rgb.width() as f64 * rgb.height() as f64).max(1.0))
         })
         .collect()
 }

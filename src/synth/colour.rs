@@ -3,7 +3,9 @@
 //! and skin with some texture, sensor noise, and a light that can be switched off (the sync
 //! event of the paper's Section 5). [`Photos::Hard`] adds what real footage of a mouth has
 //! and the clean pictures lack: gums, the tongue, wet highlights, lips shading the crowns and
-//! motion blur (white balance and exposure drift are the writer's, per frame).
+//! motion blur (white balance and exposure drift are the writer's, per frame). Surfaces are
+//! given the colours a picture shows; they mix as light (over the shutter, through the lens)
+//! and are encoded as a camera writes them ([`crate::capture::light`]).
 
 use nalgebra::Vector3;
 use rand::RngExt;
@@ -11,6 +13,7 @@ use rand::RngExt;
 use super::masks::{self, LipLine};
 use super::{LOWER_LABEL, MOUTH_LABEL, UPPER_LABEL};
 use crate::arch::ArchPoses;
+use crate::capture::light::{decoded, encoded};
 use crate::energy::raster::{Target, render_target};
 use crate::geometry::Camera;
 use crate::mesh::Mesh;
@@ -81,7 +84,7 @@ pub fn render_colour(
         let (colours, drawn) = draw(cam, meshes, poses, lips, show, photos, &fields);
         for (sum, c) in linear.iter_mut().zip(colours) {
             for j in 0..3 {
-                sum[j] += c[j] / shutter.len() as f64;
+                sum[j] += decoded(c[j]) / shutter.len() as f64;
             }
         }
         if k == shutter.len() / 2 {
@@ -101,7 +104,8 @@ struct Fields {
     glints: SmoothNoise,
 }
 
-/// The linear colours and true labels of the subject at one pose.
+/// The colours (as the picture would show them, 0-255) and true labels of the subject at
+/// one pose.
 fn draw(
     cam: &Camera,
     meshes: [&Mesh; 2],
@@ -140,7 +144,7 @@ fn draw(
     };
     let soft = (photos == Photos::Hard)
         .then(|| SoftTissue::new(&target, &opening, w, h, cam.fx * GUM_MM / depth));
-    let mut linear = vec![[0f64; 3]; w * h];
+    let mut shown = vec![[0f64; 3]; w * h];
     let mut labels = vec![0u8; w * h];
     for y in 0..h {
         for (x, &(top, bottom)) in opening.iter().enumerate().take(w) {
@@ -180,10 +184,10 @@ fn draw(
                     face
                 }
             };
-            linear[i] = colour;
+            shown[i] = colour;
         }
     }
-    (linear, labels)
+    (shown, labels)
 }
 
 /// The soft tissue a hard picture shows inside the opening: gums just beyond the crowns
@@ -340,13 +344,14 @@ fn face_colour(y: usize, top: f64, bottom: f64, lip_px: f64, t: f64) -> [f64; 3]
     }
 }
 
-/// The picture's bytes: the linear colours under `exposure`, with the sensor's noise.
+/// The picture's bytes: the light under `exposure`, encoded as a camera writes it, with the
+/// sensor's noise.
 fn expose(linear: &[[f64; 3]], exposure: Exposure, rng: &mut impl rand::Rng) -> Vec<u8> {
     let mut rgb = vec![0u8; linear.len() * 3];
     for (i, colour) in linear.iter().enumerate() {
         for k in 0..3 {
             let noise = rng.random_range(-4.0..=4.0);
-            let v = colour[k] * exposure.gain * exposure.white[k] + noise;
+            let v = encoded(colour[k] * exposure.gain * exposure.white[k]) + noise;
             rgb[i * 3 + k] = v.round().clamp(0.0, 255.0) as u8;
         }
     }

@@ -8,7 +8,7 @@
 use super::arches::split_arches;
 use super::colour_model::{ColourModel, luma};
 use super::distance::{distance_transform, mouth_span_distance};
-use super::edges::refine_edges;
+use super::edges::{refine_edges, settle_gaps};
 use super::graph_cut::GridCut;
 use super::opening::inside_the_lips;
 use super::seeds::{initial_classes, learn_interior};
@@ -130,6 +130,13 @@ pub fn segment_picture(
     let Some(classes) = classes else {
         return Outcome::OutOfView;
     };
+    let classes = settle_gaps(
+        &colours,
+        &classes,
+        &eroded(&classes, roi.w, roi.h),
+        roi.w,
+        roi.h,
+    );
     let classes = refine_edges(
         &colours,
         &classes,

@@ -36,16 +36,22 @@ fn extrapolate(last: &Pose, before: &Pose) -> Pose {
 }
 
 /// The poses a frame's search starts from: the last good pose, its constant-velocity
-/// extrapolation, the latest low-confidence estimate since.
+/// extrapolation, the latest low-confidence estimate since and that estimate moved on as far
+/// again from the last good pose (a fast motion blurs the frames it is fastest in, and such a
+/// frame, well placed but flagged, is where the motion went on from).
 pub fn starts(state: &TrackState) -> Vec<ArchPoses> {
+    let on = |last: &ArchPoses, before: &ArchPoses| ArchPoses {
+        upper: extrapolate(&last.upper, &before.upper),
+        lower: extrapolate(&last.lower, &before.lower),
+    };
     let mut starts = vec![state.last];
     if let Some(before) = &state.before {
-        starts.push(ArchPoses {
-            upper: extrapolate(&state.last.upper, &before.upper),
-            lower: extrapolate(&state.last.lower, &before.lower),
-        });
+        starts.push(on(&state.last, before));
     }
-    starts.extend(state.since_good);
+    if let Some(since) = &state.since_good {
+        starts.push(*since);
+        starts.push(on(since, &state.last));
+    }
     starts
 }
 
