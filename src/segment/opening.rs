@@ -4,16 +4,17 @@
 //! tongue, both as pink as the lips) is the mouth interior as the capture format defines it:
 //! where the camera sees no tooth, inside the lips.
 
-/// `classes` (row-major, `w` x `h`: 0 teeth, 1 mouth interior, 2 lips and skin) with every
-/// 4-connected region of lips and skin that does not reach the border and touches the mouth
-/// interior made mouth interior, but for its pixels within [`TEETH_MARGIN_PX`] of a tooth. A
-/// region enclosed by teeth alone (a highlight on enamel) stays as it is: it is no sight of the
-/// interior.
 /// How far (pixels) from the teeth the opening's lip-coloured pixels stay unlabelled: one
 /// there is as likely a crown's shaded or blurred edge as gum, and a model drawn over the
 /// interior label pays for it, so a tooth's edge mislabelled so pushes the arch off.
 const TEETH_MARGIN_PX: f32 = 2.0;
 
+/// `classes` (row-major, `w` x `h`: 0 teeth, 1 mouth interior, 2 lips and skin) with the
+/// lips and skin inside the opening made mouth interior, but for pixels within
+/// [`TEETH_MARGIN_PX`] of a tooth. Inside is what the lips enclose with the interior (a
+/// 4-connected region that does not reach the border and touches the interior) or what the
+/// convex hull of the opening (teeth and interior) covers. A region enclosed by teeth alone
+/// (a highlight on enamel) stays as it is: it is no sight of the interior.
 pub(super) fn inside_the_lips(classes: &[u8], w: usize, h: usize) -> Vec<u8> {
     let mut out = classes.to_vec();
     let teeth: Vec<u8> = classes.iter().map(|&c| (c == 0) as u8).collect();
@@ -60,7 +61,132 @@ pub(super) fn inside_the_lips(classes: &[u8], w: usize, h: usize) -> Vec<u8> {
             }
         }
     }
+    // The tongue and the gums often reach the lips, so no region encloses them: the opening's
+    // outline is what does. A mouth's opening is convex but where a lip bulges into it, so
+    // its hull holds them and little lip.
+    if let Some(hull) = opening_hull(classes, w, h) {
+        for (y, span) in hull.iter().enumerate() {
+            let Some((x0, x1)) = *span else { continue };
+            for x in x0..=x1 {
+                let i = y * w + x;
+                if out[i] == 2 && teeth_distance[i] > TEETH_MARGIN_PX {
+                    out[i] = 1;
+                }
+            }
+        }
+    }
     out
+}
+
+/// Per row, the columns (inclusive) that the convex hull of the opening's largest piece
+/// (teeth and interior, 4-connected) covers; `None` when that piece shows no interior (a
+/// closed mouth's teeth enclose no lip).
+fn opening_hull(classes: &[u8], w: usize, h: usize) -> Option<Vec<Option<(usize, usize)>>> {
+    let piece = largest_piece(classes, w, h)?;
+    // Each row's ends are enough for the hull.
+    let mut ends: Vec<(i64, i64)> = Vec::new();
+    for y in 0..h {
+        let row = &piece[y * w..(y + 1) * w];
+        if let (Some(a), Some(b)) = (row.iter().position(|&p| p), row.iter().rposition(|&p| p)) {
+            ends.push((a as i64, y as i64));
+            ends.push((b as i64, y as i64));
+        }
+    }
+    let hull = convex_hull(ends);
+    let mut spans = vec![None; h];
+    for (y, span) in spans.iter_mut().enumerate() {
+        let (mut lo, mut hi) = (f64::INFINITY, f64::NEG_INFINITY);
+        let y = y as f64;
+        for k in 0..hull.len() {
+            let (a, b) = (hull[k], hull[(k + 1) % hull.len()]);
+            let (ya, yb) = (a.1 as f64, b.1 as f64);
+            if y < ya.min(yb) || y > ya.max(yb) {
+                continue;
+            }
+            let (x0, x1) = if ya == yb {
+                (a.0.min(b.0) as f64, a.0.max(b.0) as f64)
+            } else {
+                let x = a.0 as f64 + (b.0 - a.0) as f64 * (y - ya) / (yb - ya);
+                (x, x)
+            };
+            lo = lo.min(x0);
+            hi = hi.max(x1);
+        }
+        if lo <= hi {
+            *span = Some((lo.ceil() as usize, (hi.floor() as usize).min(w - 1)));
+        }
+    }
+    Some(spans)
+}
+
+/// The largest 4-connected piece of teeth and interior, if it holds any interior.
+fn largest_piece(classes: &[u8], w: usize, h: usize) -> Option<Vec<bool>> {
+    let open = |i: usize| classes[i] < 2;
+    let mut piece_of = vec![u32::MAX; classes.len()];
+    let (mut best, mut best_size, mut best_interior) = (u32::MAX, 0, false);
+    let mut stack = Vec::new();
+    let mut count = 0u32;
+    for start in 0..classes.len() {
+        if !open(start) || piece_of[start] != u32::MAX {
+            continue;
+        }
+        piece_of[start] = count;
+        stack.push(start);
+        let (mut size, mut interior) = (0usize, false);
+        while let Some(i) = stack.pop() {
+            size += 1;
+            interior |= classes[i] == 1;
+            let (x, y) = (i % w, i / w);
+            let near = [
+                (x > 0).then(|| i - 1),
+                (x + 1 < w).then(|| i + 1),
+                (y > 0).then(|| i - w),
+                (y + 1 < h).then(|| i + w),
+            ];
+            for j in near.into_iter().flatten() {
+                if open(j) && piece_of[j] == u32::MAX {
+                    piece_of[j] = count;
+                    stack.push(j);
+                }
+            }
+        }
+        if size > best_size {
+            (best, best_size, best_interior) = (count, size, interior);
+        }
+        count += 1;
+    }
+    best_interior.then(|| piece_of.iter().map(|&p| p == best).collect())
+}
+
+/// The convex hull (Andrew's monotone chain), its vertices in order.
+fn convex_hull(mut points: Vec<(i64, i64)>) -> Vec<(i64, i64)> {
+    points.sort_unstable();
+    points.dedup();
+    if points.len() < 3 {
+        return points;
+    }
+    let mut lower = half_hull(points.iter().copied());
+    let mut upper = half_hull(points.iter().rev().copied());
+    // Each half ends where the other starts.
+    lower.pop();
+    upper.pop();
+    lower.extend(upper);
+    lower
+}
+
+/// One side of the hull of points sorted along x: the chain that turns one way only.
+fn half_hull(points: impl Iterator<Item = (i64, i64)>) -> Vec<(i64, i64)> {
+    let cross = |o: (i64, i64), a: (i64, i64), b: (i64, i64)| {
+        (a.0 - o.0) * (b.1 - o.1) - (a.1 - o.1) * (b.0 - o.0)
+    };
+    let mut chain: Vec<(i64, i64)> = Vec::new();
+    for p in points {
+        while chain.len() >= 2 && cross(chain[chain.len() - 2], chain[chain.len() - 1], p) <= 0 {
+            chain.pop();
+        }
+        chain.push(p);
+    }
+    chain
 }
 
 #[cfg(test)]
@@ -70,6 +196,36 @@ mod tests {
     /// Lips and skin around an opening; inside it, teeth above the interior with a tongue in
     /// it, and a highlight on a tooth: the tongue becomes interior but for its pixels beside
     /// the teeth; the lips and the highlight stay.
+    /// A tongue that reaches the lips at the sides is enclosed by no region, but it lies
+    /// within the opening's outline: interior, but for its pixels beside the teeth. The lips
+    /// beyond the outline stay.
+    #[test]
+    fn what_the_opening_holds_is_interior_where_the_tongue_reaches_the_lips() {
+        let rows = [
+            "2222222222222222",
+            "2220000220000222",
+            "2211111111111122",
+            "2211111111111122",
+            "2211112222111122",
+            "2221112222111222",
+            "2222222222222222",
+            "2222222222222222",
+        ];
+        let (w, h) = (rows[0].len(), rows.len());
+        let classes: Vec<u8> = rows
+            .iter()
+            .flat_map(|r| r.bytes().map(|b| b - b'0'))
+            .collect();
+        let out = inside_the_lips(&classes, w, h);
+        let at = |x: usize, y: usize| out[y * w + x];
+        assert_eq!(at(7, 4), 1, "the tongue, joined to the lower lip");
+        assert_eq!(at(8, 5), 1);
+        assert_eq!(at(7, 6), 2, "the lip below the opening");
+        assert_eq!(at(2, 5), 2, "the lip beside it");
+        assert_eq!(at(7, 1), 2, "between two crowns, within the margin");
+        assert_eq!(at(0, 0), 2, "skin");
+    }
+
     #[test]
     fn what_the_lips_enclose_with_the_interior_is_interior() {
         let rows = [
