@@ -132,11 +132,11 @@ impl TrackState {
         recent.sort_by(f64::total_cmp);
         let typical = recent.get(recent.len() / 2).copied();
         // A sudden jump over the recent typical area error; the floor keeps clean data, whose
-        // area error is near zero, from tripping it.
+        // area error is near zero, from tripping it. One good frame is enough to jump from:
+        // the second frame has no velocity to start from, and a fast jaw is lost there first.
         let jump = typical.is_some_and(|m| {
-            recent.len() >= 3
-                && worst_area_error
-                    > (settings.low_confidence_ratio * m).max(settings.low_confidence_floor)
+            worst_area_error
+                > (settings.low_confidence_ratio * m).max(settings.low_confidence_floor)
         });
         if worst_area_error > settings.low_confidence_area_error || jump {
             Status::LowConfidence
@@ -315,6 +315,32 @@ mod tests {
         assert_eq!(replayed.recent_area_errors.len(), 3);
         assert!(replayed.before.is_some() && replayed.since_good.is_none());
         assert!(replayed.edge_offsets.is_some());
+    }
+
+    /// The second frame is judged against the first: a jaw lost there (it moved fast, and no
+    /// velocity yet said where to start) is flagged, not taken as the start of the next.
+    #[test]
+    fn a_jump_in_area_error_is_flagged_from_the_second_frame_on() {
+        let settings = TrackSettings::default();
+        let mut state = TrackState::new(poses(0.0, 0.0));
+        assert_eq!(
+            state.confidence(&settings, 0.08),
+            Status::Ok,
+            "nothing to jump from"
+        );
+        state.advance(Status::Ok, poses(0.0, 0.0), 0.015, 15);
+        assert_eq!(state.confidence(&settings, 0.08), Status::LowConfidence);
+        assert_eq!(
+            state.confidence(&settings, 0.025),
+            Status::Ok,
+            "under the floor"
+        );
+        state.advance(Status::Ok, poses(0.0, 0.0), 0.05, 15);
+        assert_eq!(
+            state.confidence(&settings, 0.08),
+            Status::Ok,
+            "within 2.5 of the median"
+        );
     }
 
     #[test]
