@@ -244,19 +244,9 @@ fn captures_from_another_programs_joint_are_tracked_to_their_masks() {
 /// jaw 0.34 / 0.50 mm and interior IoU 0.934; now 0.10 / 0.18 and 0.970.
 #[test]
 fn another_programs_colour_pictures_are_segmented_and_tracked() {
-    let Some(scans) = scan_dir() else { return };
-    let Some(python) = common::python_with_numpy() else {
+    let Some((interior, median, p95)) = other_photos_segmented("clean") else {
         return;
     };
-    let t = tempfile::tempdir().unwrap();
-    let cap = t.path().join("photos");
-    other_capture(
-        &python,
-        &scans,
-        &cap,
-        &["--frames", "8", "--seed", "1", "--photos", "clean"],
-    );
-    let (interior, median, p95) = segment_and_score(&cap, &t.path().join("tracks.json"));
     assert!(interior > 0.95, "mouth interior IoU {interior}");
     assert!(
         median < 0.2 && p95 < 0.35,
@@ -270,19 +260,9 @@ fn another_programs_colour_pictures_are_segmented_and_tracked() {
 /// frames' mouth interior IoU was 0.810 (jaw 0.14 / 0.30 mm); now 0.916 (0.13 / 0.28).
 #[test]
 fn another_programs_tongue_and_gums_are_mouth_interior() {
-    let Some(scans) = scan_dir() else { return };
-    let Some(python) = common::python_with_numpy() else {
+    let Some((interior, median, p95)) = other_photos_segmented("hard") else {
         return;
     };
-    let t = tempfile::tempdir().unwrap();
-    let cap = t.path().join("photos");
-    other_capture(
-        &python,
-        &scans,
-        &cap,
-        &["--frames", "8", "--seed", "1", "--photos", "hard"],
-    );
-    let (interior, median, p95) = segment_and_score(&cap, &t.path().join("tracks.json"));
     assert!(interior > 0.88, "mouth interior IoU {interior}");
     assert!(
         median < 0.2 && p95 < 0.4,
@@ -290,15 +270,26 @@ fn another_programs_tongue_and_gums_are_mouth_interior() {
     );
 }
 
-/// `segment` run on capture `cap` without masks, written to `tracks`: the mouth interior's
-/// IoU it prints against the true labels, and the jaw's median and p95 error (mm).
-fn segment_and_score(cap: &std::path::Path, tracks: &std::path::Path) -> (f64, f64, f64) {
+/// 8 frames of the other program's colour pictures (`--photos kind`, seed 1), segmented: the
+/// mouth interior's IoU that `segment` prints against the true labels, and the jaw's median
+/// and p95 error (mm). `None` without the scans or numpy.
+fn other_photos_segmented(kind: &str) -> Option<(f64, f64, f64)> {
+    let scans = scan_dir()?;
+    let python = common::python_with_numpy()?;
+    let t = tempfile::tempdir().unwrap();
+    let (cap, tracks) = (t.path().join("photos"), t.path().join("tracks.json"));
+    other_capture(
+        &python,
+        &scans,
+        &cap,
+        &["--frames", "8", "--seed", "1", "--photos", kind],
+    );
     let (c, o) = (cap.to_str().unwrap(), tracks.to_str().unwrap());
     let text = common::ok(&["segment", c, "-o", o, "--backend", "cpu"]);
     let at = text.find("mouth interior ").expect(&text) + "mouth interior ".len();
     let interior: f64 = text[at..at + 5].parse().expect(&text);
     let (_, median, p95) = jaw_score(c, o);
-    (interior, median, p95)
+    Some((interior, median, p95))
 }
 
 /// A capture written by benches/other_capture.py into `cap` from `scans`, with `args`.

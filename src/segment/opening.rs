@@ -2,7 +2,8 @@
 //! skin are one region around it, reaching out of the picture's region of interest. Whatever
 //! is coloured like lips or skin but lies inside the opening (the gums beyond the crowns, the
 //! tongue, both as pink as the lips) is the mouth interior as the capture format defines it:
-//! where the camera sees no tooth, inside the lips.
+//! where the camera sees no tooth, inside the lips. What no region of lip colour encloses (a
+//! tongue or gums that reach the lips) the opening's outline, its convex hull, still holds.
 
 /// How far (pixels) from the teeth the opening's lip-coloured pixels stay unlabelled: one
 /// there is as likely a crown's shaded or blurred edge as gum, and a model drawn over the
@@ -193,9 +194,16 @@ fn half_hull(points: impl Iterator<Item = (i64, i64)>) -> Vec<(i64, i64)> {
 mod tests {
     use super::*;
 
-    /// Lips and skin around an opening; inside it, teeth above the interior with a tongue in
-    /// it, and a highlight on a tooth: the tongue becomes interior but for its pixels beside
-    /// the teeth; the lips and the highlight stay.
+    /// [`inside_the_lips`] of a picture drawn as rows of class digits, and its width.
+    fn opened(rows: &[&str]) -> (Vec<u8>, usize) {
+        let (w, h) = (rows[0].len(), rows.len());
+        let classes: Vec<u8> = rows
+            .iter()
+            .flat_map(|r| r.bytes().map(|b| b - b'0'))
+            .collect();
+        (inside_the_lips(&classes, w, h), w)
+    }
+
     /// A tongue that reaches the lips at the sides is enclosed by no region, but it lies
     /// within the opening's outline: interior, but for its pixels beside the teeth. The lips
     /// beyond the outline stay.
@@ -211,12 +219,7 @@ mod tests {
             "2222222222222222",
             "2222222222222222",
         ];
-        let (w, h) = (rows[0].len(), rows.len());
-        let classes: Vec<u8> = rows
-            .iter()
-            .flat_map(|r| r.bytes().map(|b| b - b'0'))
-            .collect();
-        let out = inside_the_lips(&classes, w, h);
+        let (out, w) = opened(&rows);
         let at = |x: usize, y: usize| out[y * w + x];
         assert_eq!(at(7, 4), 1, "the tongue, joined to the lower lip");
         assert_eq!(at(8, 5), 1);
@@ -226,6 +229,9 @@ mod tests {
         assert_eq!(at(0, 0), 2, "skin");
     }
 
+    /// Lips and skin around an opening; inside it, teeth above the interior with a tongue in
+    /// it, and a highlight on a tooth: the tongue becomes interior but for its pixels beside
+    /// the teeth; the lips and the highlight stay.
     #[test]
     fn what_the_lips_enclose_with_the_interior_is_interior() {
         let rows = [
@@ -241,12 +247,7 @@ mod tests {
             "2222211111122222",
             "2222222222222222",
         ];
-        let (w, h) = (rows[0].len(), rows.len());
-        let classes: Vec<u8> = rows
-            .iter()
-            .flat_map(|r| r.bytes().map(|b| b - b'0'))
-            .collect();
-        let out = inside_the_lips(&classes, w, h);
+        let (out, w) = opened(&rows);
         let at = |x: usize, y: usize| out[y * w + x];
         assert_eq!(at(7, 6), 1, "the tongue, 3 px below the teeth");
         assert_eq!(at(7, 7), 1);
