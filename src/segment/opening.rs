@@ -37,13 +37,7 @@ pub(super) fn inside_the_lips(classes: &[u8], w: usize, h: usize) -> Vec<u8> {
             next += 1;
             let (x, y) = (i % w, i / w);
             border |= x == 0 || y == 0 || x + 1 == w || y + 1 == h;
-            let near = [
-                (x > 0).then(|| i - 1),
-                (x + 1 < w).then(|| i + 1),
-                (y > 0).then(|| i - w),
-                (y + 1 < h).then(|| i + w),
-            ];
-            for j in near.into_iter().flatten() {
+            for j in neighbours(i, w, h) {
                 match classes[j] {
                     2 if !seen[j] => {
                         seen[j] = true;
@@ -77,6 +71,19 @@ pub(super) fn inside_the_lips(classes: &[u8], w: usize, h: usize) -> Vec<u8> {
         }
     }
     out
+}
+
+/// The 4-neighbours of pixel `i` in a `w` x `h` picture.
+fn neighbours(i: usize, w: usize, h: usize) -> impl Iterator<Item = usize> {
+    let (x, y) = (i % w, i / w);
+    [
+        (x > 0).then(|| i - 1),
+        (x + 1 < w).then(|| i + 1),
+        (y > 0).then(|| i - w),
+        (y + 1 < h).then(|| i + w),
+    ]
+    .into_iter()
+    .flatten()
 }
 
 /// Per row, the columns (inclusive) that the convex hull of the opening's largest piece
@@ -137,14 +144,7 @@ fn largest_piece(classes: &[u8], w: usize, h: usize) -> Option<Vec<bool>> {
         while let Some(i) = stack.pop() {
             size += 1;
             interior |= classes[i] == 1;
-            let (x, y) = (i % w, i / w);
-            let near = [
-                (x > 0).then(|| i - 1),
-                (x + 1 < w).then(|| i + 1),
-                (y > 0).then(|| i - w),
-                (y + 1 < h).then(|| i + w),
-            ];
-            for j in near.into_iter().flatten() {
+            for j in neighbours(i, w, h) {
                 if open(j) && piece_of[j] == u32::MAX {
                     piece_of[j] = count;
                     stack.push(j);
