@@ -132,7 +132,7 @@ pub(super) fn settle_gaps(
 }
 
 /// The indices of (x, y)'s 4-neighbours within the picture.
-fn neighbours4(w: usize, h: usize, x: usize, y: usize) -> impl Iterator<Item = usize> {
+pub(super) fn neighbours4(w: usize, h: usize, x: usize, y: usize) -> impl Iterator<Item = usize> {
     let i = y * w + x;
     [
         (x > 0).then(|| i - 1),

@@ -5,6 +5,8 @@
 //! where the camera sees no tooth, inside the lips. What no region of lip colour encloses (a
 //! tongue or gums that reach the lips) the opening's outline, its convex hull, still holds.
 
+use super::edges::neighbours4;
+
 /// How far (pixels) from the teeth the opening's lip-coloured pixels stay unlabelled: one
 /// there is as likely a crown's shaded or blurred edge as gum, and a model drawn over the
 /// interior label pays for it, so a tooth's edge mislabelled so pushes the arch off.
@@ -37,7 +39,7 @@ pub(super) fn inside_the_lips(classes: &[u8], w: usize, h: usize) -> Vec<u8> {
             next += 1;
             let (x, y) = (i % w, i / w);
             border |= x == 0 || y == 0 || x + 1 == w || y + 1 == h;
-            for j in neighbours(i, w, h) {
+            for j in neighbours4(w, h, x, y) {
                 match classes[j] {
                     2 if !seen[j] => {
                         seen[j] = true;
@@ -71,19 +73,6 @@ pub(super) fn inside_the_lips(classes: &[u8], w: usize, h: usize) -> Vec<u8> {
         }
     }
     out
-}
-
-/// The 4-neighbours of pixel `i` in a `w` x `h` picture.
-fn neighbours(i: usize, w: usize, h: usize) -> impl Iterator<Item = usize> {
-    let (x, y) = (i % w, i / w);
-    [
-        (x > 0).then(|| i - 1),
-        (x + 1 < w).then(|| i + 1),
-        (y > 0).then(|| i - w),
-        (y + 1 < h).then(|| i + w),
-    ]
-    .into_iter()
-    .flatten()
 }
 
 /// Per row, the columns (inclusive) that the convex hull of the opening's largest piece
@@ -144,7 +133,7 @@ fn largest_piece(classes: &[u8], w: usize, h: usize) -> Option<Vec<bool>> {
         while let Some(i) = stack.pop() {
             size += 1;
             interior |= classes[i] == 1;
-            for j in neighbours(i, w, h) {
+            for j in neighbours4(w, h, i % w, i / w) {
                 if open(j) && piece_of[j] == u32::MAX {
                     piece_of[j] = count;
                     stack.push(j);
