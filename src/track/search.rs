@@ -121,6 +121,12 @@ pub struct GaussNewtonSettings {
     /// label's area as well as the truth does. At the true pose the share is the masks' noise
     /// (0.01-0.05 on realistic masks).
     pub fallback_misdrawn: f64,
+    /// Where the paper's search was asked because Gauss-Newton's answer fitted worse than the
+    /// recent frames, its answer (settled by Gauss-Newton) overrules Gauss-Newton's own only
+    /// where its worse arch's area error is at least this share lower: a mouth opening wide
+    /// shows more of the masks' errors from frame to frame, and the paper's search then lands
+    /// a fit no better and a pose further off.
+    pub fallback_gain: f64,
     /// Estimate each camera's offset of its masks' edges beside the poses
     /// (`super::edge_offsets`): a segmentation that draws the teeth wider in one camera and
     /// narrower in another, for the whole take.
@@ -141,6 +147,7 @@ impl Default for GaussNewtonSettings {
             jaw_prior_nearest: 20,
             fallback_ratio: 1.5,
             fallback_misdrawn: 0.1,
+            fallback_gain: 0.1,
             edge_offsets: true,
         }
     }
@@ -169,6 +176,7 @@ impl GaussNewtonSettings {
         rules.number("contact_stiffness", self.contact_stiffness, 0.0, 1e9)?;
         rules.number("manifold_stiffness", self.manifold_stiffness, 0.0, 1e9)?;
         rules.number("fallback_misdrawn", self.fallback_misdrawn, 0.0, 1e9)?;
+        rules.number("fallback_gain", self.fallback_gain, 0.0, 1.0)?;
         rules.count(
             "jaw_prior_nearest",
             self.jaw_prior_nearest as u64,
