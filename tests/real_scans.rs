@@ -244,7 +244,7 @@ fn captures_from_another_programs_joint_are_tracked_to_their_masks() {
 /// jaw 0.34 / 0.50 mm and interior IoU 0.934; now 0.10 / 0.18 and 0.970.
 #[test]
 fn another_programs_colour_pictures_are_segmented_and_tracked() {
-    let Some((interior, median, p95)) = other_photos_segmented("clean") else {
+    let Some((interior, median, p95)) = other_photos_segmented("clean", 8) else {
         return;
     };
     assert!(interior > 0.95, "mouth interior IoU {interior}");
@@ -254,35 +254,41 @@ fn another_programs_colour_pictures_are_segmented_and_tracked() {
     );
 }
 
-/// The same program's hard photos (--photos hard): the tongue fills the bottom of the opening
-/// and gums show beyond the crowns, both reaching the lips, so that no region of lip colour
-/// encloses them. Before the opening's outline (its convex hull) said what is inside, these 8
-/// frames' mouth interior IoU was 0.810 (jaw 0.14 / 0.30 mm); now 0.916 (0.13 / 0.28).
+/// The same program's hard photos (--photos hard), 16 frames. The tongue fills the bottom of
+/// the opening and gums show beyond the crowns, both reaching the lips, so that no region of
+/// lip colour encloses them: before the opening's outline (its convex hull) said what is
+/// inside, the first 8 frames' mouth interior IoU was 0.810; now 0.890 over the 16. The jaw
+/// opens fast over frames 13-15 and the area error rises with it: those frames went to the
+/// paper's search, which looks among the average joint's poses too (this subject's manifold
+/// was let go at frame 13) and landed no better fit; before its answer had to fit clearly
+/// better to overrule Gauss-Newton's, the jaw
+/// came out at 0.22 / 0.68 mm, now 0.19 / 0.44.
 #[test]
-fn another_programs_tongue_and_gums_are_mouth_interior() {
-    let Some((interior, median, p95)) = other_photos_segmented("hard") else {
+fn another_programs_hard_photos_hold_tongue_gums_and_a_fast_opening() {
+    let Some((interior, median, p95)) = other_photos_segmented("hard", 16) else {
         return;
     };
-    assert!(interior > 0.88, "mouth interior IoU {interior}");
+    assert!(interior > 0.87, "mouth interior IoU {interior}");
     assert!(
-        median < 0.2 && p95 < 0.4,
+        median < 0.25 && p95 < 0.55,
         "jaw {median} / {p95} mm (median / p95)"
     );
 }
 
-/// 8 frames of the other program's colour pictures (`--photos kind`, seed 1), segmented: the
-/// mouth interior's IoU that `segment` prints against the true labels, and the jaw's median
-/// and p95 error (mm). `None` without the scans or numpy.
-fn other_photos_segmented(kind: &str) -> Option<(f64, f64, f64)> {
+/// `frames` frames of the other program's colour pictures (`--photos kind`, seed 1),
+/// segmented: the mouth interior's IoU that `segment` prints against the true labels, and the
+/// jaw's median and p95 error (mm). `None` without the scans or numpy.
+fn other_photos_segmented(kind: &str, frames: u32) -> Option<(f64, f64, f64)> {
     let scans = scan_dir()?;
     let python = common::python_with_numpy()?;
     let t = tempfile::tempdir().unwrap();
     let (cap, tracks) = (t.path().join("photos"), t.path().join("tracks.json"));
+    let frames = frames.to_string();
     other_capture(
         &python,
         &scans,
         &cap,
-        &["--frames", "8", "--seed", "1", "--photos", kind],
+        &["--frames", &frames, "--seed", "1", "--photos", kind],
     );
     let (c, o) = (cap.to_str().unwrap(), tracks.to_str().unwrap());
     let text = common::ok(&["segment", c, "-o", o, "--backend", "cpu"]);

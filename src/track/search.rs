@@ -122,10 +122,11 @@ pub struct GaussNewtonSettings {
     /// (0.01-0.05 on realistic masks).
     pub fallback_misdrawn: f64,
     /// Where the paper's search was asked because Gauss-Newton's answer fitted worse than the
-    /// recent frames, its answer (settled by Gauss-Newton) overrules Gauss-Newton's own only
-    /// where its worse arch's area error is at least this share lower: a mouth opening wide
-    /// shows more of the masks' errors from frame to frame, and the paper's search then lands
-    /// a fit no better and a pose further off.
+    /// recent frames, in a take whose jaw's manifold was let go (the paper's search looks
+    /// among the average joint's poses too), its answer (settled by Gauss-Newton) overrules
+    /// Gauss-Newton's own only where its worse arch's area error is at least this share lower:
+    /// a mouth opening wide shows more of the masks' errors from frame to frame, and the
+    /// paper's search then lands a fit no better and a pose further off.
     pub fallback_gain: f64,
     /// Estimate each camera's offset of its masks' edges beside the poses
     /// (`super::edge_offsets`): a segmentation that draws the teeth wider in one camera and

@@ -376,9 +376,13 @@ fn track_over(
         if state.confidence(&strict, worst) == Status::Ok && drawn_well {
             return accept_solved(run, engine, masks, state, frame, found, evaluations);
         }
-        // Only a fit worse than the recent ones is a second opinion's to overrule: an arch
-        // drawn over the open mouth fits its area as well as the truth does.
-        second_opinion = drawn_well.then_some(found);
+        // The paper's search looks for the lower arch among the average joint's poses too (the
+        // jaw prior). Once the take has shown that this subject's jaw is not the average one
+        // (its manifold let go), the answer it lands is a second opinion that overrules
+        // Gauss-Newton's only with a clearly better fit, and only where the fit was what sent
+        // the frame there: an arch drawn over the open mouth fits its area as well as the
+        // truth does.
+        second_opinion = (drawn_well && state.manifold_fit.released).then_some(found);
     }
     let mut poses = state.last;
     let passes = match capture.mask_mode() {
@@ -428,11 +432,9 @@ fn track_over(
             break;
         }
     }
-    // The paper's search, asked because Gauss-Newton's answer fitted worse than the recent
-    // frames, finds the basin and Gauss-Newton settles it; that overrules Gauss-Newton's own
-    // answer only where it fits clearly better. A mouth opening wide shows more of the masks'
-    // errors frame by frame, and the paper's search then lands a fit no better and a pose
-    // further off; an arch lost on the way fits clearly worse.
+    // Gauss-Newton settles the second opinion's answer. A mouth opening wide shows more of the
+    // masks' errors frame by frame: the paper's search then lands a fit no better, nearer the
+    // average joint, and a pose further off; an arch lost on the way fits clearly worse.
     if let Some(found) = second_opinion {
         let settled = (run.joint_frame()).solve(&*engine, masks, &[poses], offsets.as_ref())?;
         evaluations += settled.evaluations;
