@@ -374,7 +374,15 @@ fn track_over(
             .fold(0.0, f64::max);
         let drawn_well = misdrawn <= gn.fallback_misdrawn;
         if state.confidence(&strict, worst) == Status::Ok && drawn_well {
-            return accept_solved(run, engine, masks, state, frame, found, evaluations);
+            return accept_solved(
+                run,
+                engine,
+                masks,
+                state,
+                frame,
+                found,
+                (evaluations, steps),
+            );
         }
         // The paper's search looks for the lower arch among the average joint's poses too (the
         // jaw prior). Once the take has shown that this subject's jaw is not the average one
@@ -438,11 +446,20 @@ fn track_over(
     if let Some(found) = second_opinion {
         let settled = (run.joint_frame()).solve(&*engine, masks, &[poses], offsets.as_ref())?;
         evaluations += settled.evaluations;
+        steps += settled.steps;
         let chosen = match overrules(&settled.energies, &found.energies, gn.fallback_gain) {
             true => settled,
             false => found,
         };
-        return accept_solved(run, engine, masks, state, frame, chosen, evaluations);
+        return accept_solved(
+            run,
+            engine,
+            masks,
+            state,
+            frame,
+            chosen,
+            (evaluations, steps),
+        );
     }
     let energies = [
         engine.evaluate(Arch::Upper, &[poses])?.remove(0),
@@ -508,7 +525,7 @@ fn finish(
 }
 
 /// Gauss-Newton's answer `found` taken as the frame's (looked at again where it is lost),
-/// with the edge offsets it estimated.
+/// with the edge offsets it estimated; the frame took `evaluations` and `steps` so far.
 fn accept_solved(
     run: &Run,
     engine: &mut dyn EnergyEngine,
@@ -516,7 +533,7 @@ fn accept_solved(
     state: &mut TrackState,
     frame: u32,
     found: JointFound,
-    mut evaluations: usize,
+    (mut evaluations, steps): (usize, usize),
 ) -> Result<FrameResult> {
     state.edge_offsets = found.offsets;
     let tracked = (found.poses, found.energies);
@@ -528,7 +545,7 @@ fn accept_solved(
     };
     let result = finish(run, state, frame, poses, energies, evaluations);
     Ok(FrameResult {
-        steps: found.steps,
+        steps,
         information,
         ..result
     })
