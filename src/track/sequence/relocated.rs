@@ -1,7 +1,7 @@
 //! A frame looked at again: one lost (worse than any tracked frame may be) has its arches
 //! found afresh from its masks alone, and the masks' information taken where the poses are.
 
-use super::Run;
+use super::{Run, worst_area_error};
 use crate::arch::ArchPoses;
 use crate::capture::FrameMasks;
 use crate::energy::smooth::Matrix12;
@@ -32,8 +32,7 @@ pub(super) fn relocated(
     evaluations: &mut usize,
 ) -> Result<(ArchPoses, [Energy; 2])> {
     let settings = &run.settings;
-    let worst = energies.iter().map(Energy::area_error).fold(0.0, f64::max);
-    if worst <= settings.relocate_area_error {
+    if worst_area_error(&energies) <= settings.relocate_area_error {
         return Ok((poses, energies));
     }
     let Some(mut found) = relocate(run.capture, engine, masks, settings, &run.edges)? else {
