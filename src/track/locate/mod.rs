@@ -27,11 +27,13 @@ use nalgebra::{Rotation3, Vector3};
 
 use rayon::prelude::*;
 
-use self::centroids::{Blob, Frame, MIN_PIXELS, View, blob, drawn_centre, views, world_frame};
+pub use self::centroids::MIN_PIXELS;
+use self::centroids::{Blob, Frame, View, blob, drawn_centre, views, world_frame};
 use super::align::{AlignSettings, FrameReads};
 use super::joint_frame::{JointFound, JointFrame};
 use super::penalties::Penalties;
 use super::prior::{JawPrior, centre};
+use super::search::RADIUS_MM;
 use super::settings::TrackSettings;
 use crate::anatomy::scan_frame::scan_frame;
 use crate::arch::{Arch, ArchPoses};
@@ -61,12 +63,11 @@ const CENTRING_ROUNDS: usize = 4;
 /// How many upper-arch hypotheses go on to the solver, and lower-arch ones beside the prior's.
 const KEEP: usize = 4;
 const KEEP_LOWER: usize = 2;
-/// Hypotheses whose teeth lie closer than this (mm, at the arch's anchor) and turned less than
-/// this (degrees) are one: most of the grid's starts align to the same pose (the best four
-/// within 0.25 mm and 0.75 degrees of each other on all of 18 frames of another program's
-/// captures), and the solver takes a pair this close to the same answer.
+/// Hypotheses closer than this (mm: apart at the teeth, plus turned at an arch's radius) are
+/// one: most of the grid's starts align to the same pose (the best four within 0.25 mm and
+/// 0.75 degrees of each other on all of 18 frames of another program's captures), and the
+/// solver takes a pair this close to the same answer.
 const SAME_MM: f64 = 1.0;
-const SAME_DEG: f64 = 1.0;
 /// The tilts (degrees) tried about the arches' left-right axis, coarse to fine.
 const TILT_DEG: [u32; 3] = [4, 2, 1];
 /// Solver runs per start at most, and the share of the objective a run must gain for
@@ -391,14 +392,14 @@ fn anchor(mesh: &Mesh) -> Vector3<f64> {
         .unwrap_or_else(|| mesh.principal_axes().0)
 }
 
-/// Those of `poses` (in their order) that are not the same as one before them ([`SAME_MM`] at
-/// `anchor`, [`SAME_DEG`]).
+/// Those of `poses` (in their order) that are not the same as one before them ([`SAME_MM`],
+/// apart at `anchor`).
 fn distinct(poses: impl Iterator<Item = Pose>, anchor: &Vector3<f64>) -> Vec<Pose> {
     let mut kept: Vec<Pose> = Vec::new();
     for pose in poses {
         let same = |k: &Pose| {
-            k.distance_to(&pose).0 < SAME_DEG.to_radians()
-                && (k.transform_point(anchor) - pose.transform_point(anchor)).norm() < SAME_MM
+            let apart = (k.transform_point(anchor) - pose.transform_point(anchor)).norm();
+            apart + k.distance_to(&pose).0 * RADIUS_MM < SAME_MM
         };
         if !kept.iter().any(same) {
             kept.push(pose);

@@ -1,13 +1,13 @@
 //! A frame looked at again: one lost (worse than any tracked frame may be) has its arches
 //! found afresh from its masks alone, and the masks' information taken where the poses are.
 
-use super::{Run, worst_area_error};
+use super::Run;
 use crate::arch::ArchPoses;
 use crate::capture::FrameMasks;
 use crate::energy::smooth::Matrix12;
 use crate::energy::{Energy, EnergyEngine};
 use crate::error::Result;
-use crate::track::locate::relocate;
+use crate::track::locate::{MIN_PIXELS, relocate};
 use crate::track::search::Solver;
 
 /// The masks' information about `poses`, where the window over frames takes it.
@@ -22,6 +22,16 @@ pub(super) fn window_information(
         .transpose()
 }
 
+/// Whether an arch fits its masks worse than any tracked one may (its area error above
+/// `area_error`). An arch that leaves fewer of its mask's pixels uncovered than one camera needs
+/// to place it is not lost, whatever share of a small mask that is (the lips closing over its
+/// teeth), and its masks could not place it afresh.
+pub(super) fn lost(energies: &[Energy; 2], area_error: f64) -> bool {
+    energies
+        .iter()
+        .any(|e| e.area_error() > area_error && e.uncovered() >= MIN_PIXELS)
+}
+
 /// A frame lost (worse than any tracked frame may be) has its arches looked for afresh, from
 /// its masks alone ([`relocate`]); they are taken where they fit better, penalties included.
 pub(super) fn relocated(
@@ -32,7 +42,7 @@ pub(super) fn relocated(
     evaluations: &mut usize,
 ) -> Result<(ArchPoses, [Energy; 2])> {
     let settings = &run.settings;
-    if worst_area_error(&energies) <= settings.relocate_area_error {
+    if !lost(&energies, settings.relocate_area_error) {
         return Ok((poses, energies));
     }
     let Some(mut found) = relocate(run.capture, engine, masks, settings, &run.edges)? else {
