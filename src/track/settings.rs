@@ -27,9 +27,10 @@ pub struct TrackSettings {
     /// times the median area error of the last `confidence_window` good frames (a sudden
     /// jump; the floor keeps clean data, whose area error is near zero, from tripping it).
     pub low_confidence_area_error: f64,
-    /// A frame whose worse arch's area error exceeds this after its search is taken as lost
-    /// (at 0.1, frames of hard captures where the lips close trip it, and the fresh look finds
-    /// poses the energy prefers that are further from the truth):
+    /// A frame where an arch's area error exceeds this after its search, and the arch leaves
+    /// at least 40 of its mask pixels uncovered (fewer are a small mask the lips close over),
+    /// is taken as lost (at 0.1, frames of hard captures where the lips close trip it, and the
+    /// fresh look finds poses the energy prefers that are further from the truth):
     /// both arches are looked for afresh from its masks alone (`locate`, as for a capture
     /// without init.json) and kept where they fit better. 1 turns it off. (Left out of the
     /// output's fingerprint at its default, so runs from before it resume.)
