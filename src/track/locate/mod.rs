@@ -108,8 +108,8 @@ enum NotFound {
     Unseen(usize),
     /// The teeth's centroids do not triangulate.
     Unplaced,
-    /// The best pose's misfit: above [`MAX_MISFIT`].
-    Misfit(f64),
+    /// The best pose's misfit: above [`MAX_MISFIT`]; and the evaluations spent.
+    Misfit { misfit: f64, evaluations: usize },
 }
 
 /// Both arches' poses in the frame of `masks` (already given to `engine`), from the masks
@@ -135,7 +135,7 @@ pub fn locate(
         Err(NotFound::Unplaced) => "the teeth's centroids in the cameras do not triangulate \
             to a point in front of them (check the cameras' calibration)"
             .to_string(),
-        Err(NotFound::Misfit(misfit)) => format!(
+        Err(NotFound::Misfit { misfit, .. }) => format!(
             "no pose of the arches fits these masks (best misfit {misfit:.2} of the mask \
              pixels, at most {MAX_MISFIT}); give the first frame's poses in init.json"
         ),
@@ -147,15 +147,23 @@ pub fn locate(
     ))
 }
 
-/// [`locate`] where finding nothing is an answer (a lost frame that stays lost), not an error.
+/// [`locate`] where finding nothing is an answer (a lost frame that stays lost), not an error;
+/// and the energy evaluations spent, found or not.
 pub fn relocate(
     capture: &Capture,
     engine: &dyn EnergyEngine,
     masks: &FrameMasks,
     settings: &TrackSettings,
     edges: &[ContourEdges; 2],
-) -> Result<Option<Located>> {
-    Ok(find(capture, engine, masks, settings, edges)?.ok())
+) -> Result<(Option<Located>, usize)> {
+    Ok(match find(capture, engine, masks, settings, edges)? {
+        Ok(located) => {
+            let spent = located.evaluations;
+            (Some(located), spent)
+        }
+        Err(NotFound::Misfit { evaluations, .. }) => (None, evaluations),
+        Err(_) => (None, 0),
+    })
 }
 
 fn find(
@@ -349,7 +357,10 @@ fn find(
     let mut best = best.expect("hypotheses");
     best.evaluations = evaluations;
     if best.misfit > MAX_MISFIT {
-        return Ok(Err(NotFound::Misfit(best.misfit)));
+        return Ok(Err(NotFound::Misfit {
+            misfit: best.misfit,
+            evaluations,
+        }));
     }
     Ok(Ok(best))
 }

@@ -45,10 +45,11 @@ pub(super) fn relocated(
     if !lost(&energies, settings.relocate_area_error) {
         return Ok((poses, energies));
     }
-    let Some(mut found) = relocate(run.capture, engine, masks, settings, &run.edges)? else {
+    let (found, spent) = relocate(run.capture, engine, masks, settings, &run.edges)?;
+    *evaluations += spent;
+    let Some(mut found) = found else {
         return Ok((poses, energies));
     };
-    *evaluations += found.evaluations;
     // Found from the masks alone, then solved as any frame is, with the penalties: the masks
     // of a lost frame may leave the arches a valley the joint's prior closes.
     if settings.search.solver == Solver::GaussNewton {
