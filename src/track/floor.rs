@@ -1,8 +1,13 @@
 //! The energy's floor: how close to the truth the energy's own minimum lies. A long, fine
-//! search from the true poses finds it (and Gauss-Newton's steps from there, the smooth
-//! energy's); a tracked frame is then told apart from the floor by
-//! its error and by its objective (higher: the search stopped short; the same: the energy
-//! cannot tell the poses apart).
+//! search finds it, started both at the true poses and at the tracked ones (and Gauss-Newton's
+//! steps from the truth, the smooth energy's); a tracked frame is then told apart from the
+//! floor by its error and by its objective (higher: the search stopped short; the same: the
+//! energy cannot tell the poses apart).
+//!
+//! Why two starts: E counts whole pixels, and where the masks' errors are the same in every
+//! frame its low ground is a valley half a millimetre long, not a point. A search started at
+//! the truth stops on the valley's near end and would report what E cannot tell as what it
+//! can (docs/energy.md, "The floor from two starts").
 
 use super::joint::align_both;
 use super::joint_frame::{with_hinges, with_views};
@@ -36,11 +41,30 @@ pub fn objective_sum(
 }
 
 /// The floor's poses: the objective (at `weights`, without penalties) minimised by a long,
-/// fine search from the true poses (upper, then lower). `engine` holds the frame's masks.
+/// fine search from the true poses and from `tracked` (upper, then lower), the lower of the
+/// two. `engine` holds the frame's masks.
 pub fn floor_poses(
     capture: &Capture,
     engine: &dyn EnergyEngine,
-    truth: &ArchPoses,
+    (truth, tracked): (&ArchPoses, &ArchPoses),
+    frame: u32,
+    weights: &Weights,
+) -> Result<ArchPoses> {
+    let from_truth = floor_from(capture, engine, truth, frame, weights)?;
+    if tracked == truth {
+        return Ok(from_truth);
+    }
+    let from_tracked = floor_from(capture, engine, tracked, frame, weights)?;
+    let lower = objective_sum(engine, &from_tracked, weights)?
+        < objective_sum(engine, &from_truth, weights)?;
+    Ok(if lower { from_tracked } else { from_truth })
+}
+
+/// The objective minimised by a long, fine search from `start` (upper, then lower).
+fn floor_from(
+    capture: &Capture,
+    engine: &dyn EnergyEngine,
+    start: &ArchPoses,
     frame: u32,
     weights: &Weights,
 ) -> Result<ArchPoses> {
@@ -55,7 +79,7 @@ pub fn floor_poses(
         mouth_weight: weights.mouth,
         ..SearchSettings::default()
     };
-    let mut poses = *truth;
+    let mut poses = *start;
     for arch in Arch::BOTH {
         let centre = centre(capture, arch);
         let found = search(
@@ -139,7 +163,7 @@ impl FloorCheck {
         (search, penalties): (&SearchSettings, &Penalties),
     ) -> Result<FloorCheck> {
         let weights = &search.weights();
-        let floor = floor_poses(capture, engine, truth, masks.frame, weights)?;
+        let floor = floor_poses(capture, engine, (truth, tracked), masks.frame, weights)?;
         let gn = (weights, &search.gauss_newton);
         let smooth = smooth_floor_poses(capture, engine, masks, truth, gn, penalties)?;
         let metric = MeshMetric::new(capture.lower());

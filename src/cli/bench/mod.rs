@@ -13,7 +13,8 @@ pub enum Command {
     /// batched, footprint and full frame, on a procedural arch and the real scans.
     Energy(energy::EnergyArgs),
     /// Track synthetic captures and compare with the energy's floor (the minimum of E found
-    /// by a long, fine search from the truth), per preset: accuracy, speed, ratio to floor.
+    /// by a long, fine search from the truth and from the tracked poses), per preset:
+    /// accuracy, speed, ratio to floor.
     Track(track::TrackArgs),
     /// Learn a rig from synthetic TMJ motion and report the paper's figures, learning time and
     /// IK speed.

@@ -279,7 +279,7 @@ fn track_capture(
 /// Prints the rows as a table: errors as median / 95th percentile, against the energy's floor.
 fn print_table(rows: &[TrackRow]) {
     println!(
-        "mean vertex error in mm (median / 95th percentile); floor = error of E's minimum found from the truth, smooth = of the smooth energy's (Gauss-Newton's); flags: flagged of the frames with the jaw off by more than 1 mm, flagged of the others, of those with the teeth hidden"
+        "mean vertex error in mm (median / 95th percentile); floor = error of E's lowest minimum found from the truth and from the tracked poses, smooth = of the smooth energy's (Gauss-Newton's); flags: flagged of the frames with the jaw off by more than 1 mm, flagged of the others, of those with the teeth hidden"
     );
     println!(
         "{:<10} {:<8} {:<5} {:>6} {:>8} {:>7} {:>6} {:>13} {:>13} {:>13} {:>13} {:>13} {:>11} {:>9} {:>13} {:>16}",
