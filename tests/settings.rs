@@ -135,6 +135,21 @@ fn every_search_rule_names_its_field_and_range() {
                 "search.mouth_weight",
                 "from 0 to 1000",
             ),
+            (
+                r#"{"search":{"gauss_newton":{"fallback_ratio":-1}}}"#,
+                "search.gauss_newton.fallback_ratio",
+                "from 0 to 1000000",
+            ),
+            (
+                r#"{"search":{"gauss_newton":{"fallback_after":20000}}}"#,
+                "search.gauss_newton.fallback_after",
+                "from 0 to 10000",
+            ),
+            (
+                r#"{"search":{"gauss_newton":{"reaches_px":[]}}}"#,
+                "search.gauss_newton.reaches_px",
+                "from 1 to 16 entries",
+            ),
         ],
         track_error,
     );
