@@ -115,14 +115,6 @@ pub struct GaussNewtonSettings {
     /// typical one (or the tracker's bound of a low-confidence frame) goes to the paper's
     /// search.
     pub fallback_ratio: f64,
-    /// `fallback_ratio` applies once the recent frames' typical area error rests on this many
-    /// good frames; before, only the low-confidence rule's larger jump
-    /// (`TrackSettings::low_confidence_ratio`) sends a frame to the paper's search. The first
-    /// frames' area errors need not be the take's: while the arches overlap (a closed mouth)
-    /// every edge of a combined teeth label is a lip's, under which the models run on, and
-    /// once they part the crowns' edges against the mouth interior are the models' own
-    /// silhouettes, whose masks' ragged edge leaves pixels uncovered at the true poses too.
-    pub fallback_after: usize,
     /// A frame where either arch is drawn over more than this share of its mask's pixels'
     /// worth of what the masks say is not it (the other arch's label, the mouth interior) goes
     /// to the paper's search too: an arch the steps left over the open mouth fits its own
@@ -155,7 +147,6 @@ impl Default for GaussNewtonSettings {
             manifold_stiffness: 10.0,
             jaw_prior_nearest: 20,
             fallback_ratio: 1.5,
-            fallback_after: 5,
             fallback_misdrawn: 0.1,
             fallback_gain: 0.1,
             edge_offsets: true,
@@ -185,8 +176,7 @@ impl GaussNewtonSettings {
         rules.number("motion_prior", self.motion_prior, 0.0, 1e9)?;
         rules.number("contact_stiffness", self.contact_stiffness, 0.0, 1e9)?;
         rules.number("manifold_stiffness", self.manifold_stiffness, 0.0, 1e9)?;
-        rules.number("fallback_ratio", self.fallback_ratio, 0.0, 1e6)?;
-        rules.count("fallback_after", self.fallback_after as u64, 0, 10_000)?;
+        rules.number("fallback_ratio", self.fallback_ratio, 0.0, 1e9)?;
         rules.number("fallback_misdrawn", self.fallback_misdrawn, 0.0, 1e9)?;
         rules.number("fallback_gain", self.fallback_gain, 0.0, 1.0)?;
         rules.count(

@@ -145,26 +145,6 @@ impl TrackState {
         }
     }
 
-    /// `settings` with the ratio the confidence rule takes for Gauss-Newton's fallback:
-    /// `ratio` once the recent typical area error rests on `after` good frames (or the whole
-    /// confidence window), the rule's own where that is larger before then
-    /// (`GaussNewtonSettings::fallback_after`).
-    pub fn fallback_rule(
-        &self,
-        settings: &TrackSettings,
-        ratio: f64,
-        after: usize,
-    ) -> TrackSettings {
-        let settled = self.recent_area_errors.len() >= after.min(settings.confidence_window);
-        TrackSettings {
-            low_confidence_ratio: match settled {
-                true => ratio,
-                false => ratio.max(settings.low_confidence_ratio),
-            },
-            ..settings.clone()
-        }
-    }
-
     /// A frame where no camera saw anything: the last good pose stays; the velocity restarts.
     pub fn no_data(&mut self) {
         self.before = None;
@@ -281,52 +261,6 @@ mod tests {
             r["area_error"] = serde_json::json!({"upper": u, "lower": l});
         }
         r.to_string()
-    }
-
-    /// Gauss-Newton's fallback judges a frame by its own, finer ratio only once enough good
-    /// frames set the typical area error; before, by the low-confidence rule's.
-    #[test]
-    fn the_fallback_waits_for_a_typical_fit() {
-        let settings = TrackSettings::default();
-        let (ratio, after) = (1.5, 3);
-        let mut state = TrackState::new(poses(0.0, 0.0));
-        let jump = |state: &TrackState, worst| {
-            state.confidence(&state.fallback_rule(&settings, ratio, after), worst)
-        };
-        for frame in 0..after {
-            state.advance(
-                Status::Ok,
-                poses(0.0, 0.0),
-                0.04,
-                settings.confidence_window,
-            );
-            // 2x the typical fit: a jump for the fallback only from the third good frame on.
-            let expected = match frame + 1 >= after {
-                true => Status::LowConfidence,
-                false => Status::Ok,
-            };
-            assert_eq!(jump(&state, 0.08), expected, "after {} frames", frame + 1);
-        }
-        // The low-confidence rule's own jump counts from the first good frame.
-        let mut first = TrackState::new(poses(0.0, 0.0));
-        first.advance(
-            Status::Ok,
-            poses(0.0, 0.0),
-            0.04,
-            settings.confidence_window,
-        );
-        assert_eq!(jump(&first, 0.11), Status::LowConfidence);
-        // A window shorter than `after` settles the typical fit once it is full.
-        let short = TrackSettings {
-            confidence_window: 2,
-            ..settings.clone()
-        };
-        let mut full = TrackState::new(poses(0.0, 0.0));
-        for _ in 0..2 {
-            full.advance(Status::Ok, poses(0.0, 0.0), 0.04, 2);
-        }
-        let rule = full.fallback_rule(&short, ratio, 10);
-        assert_eq!(rule.low_confidence_ratio, ratio);
     }
 
     /// Every transition, replayed from the written records, leaves the state the live run had,

@@ -359,12 +359,14 @@ fn track_over(
         evaluations += found.evaluations;
         steps = found.steps;
         // A frame that fits worse than the recent ones (the confidence rule with the
-        // solver's own, stricter ratio once enough frames set the typical fit), or with an
-        // arch drawn over what the masks say is not it, is taken over by the paper's search,
-        // with the whole jaw prior: an arch the masks barely show (lips closing) may have
-        // slid away.
+        // solver's own, stricter ratio), or with an arch drawn over what the masks say is not
+        // it, is taken over by the paper's search, with the whole jaw prior: an arch the masks
+        // barely show (lips closing) may have slid away.
         let worst = worst_area_error(&found.energies);
-        let strict = state.fallback_rule(settings, gn.fallback_ratio, gn.fallback_after);
+        let strict = TrackSettings {
+            low_confidence_ratio: gn.fallback_ratio,
+            ..settings.clone()
+        };
         let misdrawn = found
             .energies
             .iter()
