@@ -484,6 +484,28 @@ fn segment_makes_masks_from_colour_frames() {
     let again = jawtrack(&["segment", s(&cap), "-o", s(&tracks), "--backend", "cpu"]);
     assert!(!again.status.success());
     assert_mentions(&String::from_utf8_lossy(&again.stderr), &["--force"]);
+
+    // The bench segments a copy: its figures are segment's, and the masks given stay.
+    let mask = cap.join("masks/cam1/000003.png");
+    let before = std::fs::read(&mask).unwrap();
+    std::fs::write(&mask, b"not a picture").unwrap();
+    let json = ok(&[
+        "bench",
+        "segment",
+        "--backend",
+        "cpu",
+        "--captures-only",
+        "--capture",
+        s(&cap),
+        "--json",
+    ]);
+    let rows: serde_json::Value = serde_json::from_str(&json).unwrap();
+    let row = &rows[0];
+    assert_eq!(row["frames"], 6, "{json}");
+    assert!(row["masks"]["teeth_iou"].as_f64().unwrap() > 0.8, "{json}");
+    assert!(row["jaw_mm"][0].as_f64().unwrap() < 1.0, "{json}");
+    assert_eq!(std::fs::read(&mask).unwrap(), b"not a picture");
+    std::fs::write(&mask, before).unwrap();
 }
 
 /// Hard photos (gums, tongue, highlights, blur, drifting white balance): the teeth still

@@ -64,6 +64,14 @@ choice!(PresetArg => jawtrack::synth::Preset {
     Hard,
 });
 
+choice!(PhotosArg => jawtrack::synth::Photos {
+    /// Teeth, the dark mouth interior, lips and skin; a little lens blur and sensor noise.
+    Clean,
+    /// What a real mouth shows besides teeth: gums, the tongue, wet highlights, lips shading
+    /// the crowns, motion blur, drifting exposure and white balance.
+    Hard,
+});
+
 choice!(JointArg => jawtrack::synth::Joint {
     /// An average adult joint.
     Average,

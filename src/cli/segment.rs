@@ -1,9 +1,10 @@
-use std::path::PathBuf;
+use std::ops::Range;
+use std::path::{Path, PathBuf};
 
 use anyhow::Context;
-use jawtrack::capture::Capture;
+use jawtrack::capture::{Capture, OpenOptions};
 use jawtrack::segment::{SegmentSettings, Segmenter, prepare, score::score_masks};
-use jawtrack::track::{Session, score_records};
+use jawtrack::track::{Session, SessionOptions, Summary, score_records};
 
 use super::args::read_settings;
 
@@ -42,11 +43,11 @@ pub fn run(mut args: Args) -> anyhow::Result<()> {
             s
         }
     };
-    let options = jawtrack::capture::OpenOptions {
+    let options = OpenOptions {
         masks_to_come: true,
         ..a.how.load.open_options()
     };
-    let mut capture = Capture::open_with(&a.capture, options)
+    let capture = Capture::open_with(&a.capture, options)
         .with_context(|| format!("invalid capture {}", a.capture.display()))?;
     super::report::notes(&capture);
     let existing = capture
@@ -67,46 +68,16 @@ pub fn run(mut args: Args) -> anyhow::Result<()> {
              teeth alone (add e.g. \"mouth\": 40 to keep the mouth interior)"
         );
     }
-    if capture.init().is_none() {
-        anyhow::bail!(
-            "{}: not found: segment starts its colour models from the arches drawn at the first \
-             frame's poses (init.json's poses or bootstrap points); tracking without init.json \
-             needs masks",
-            capture.dir().join("init.json").display()
-        );
-    }
-    let mut sizes = prepare(&mut capture)?;
-    // Only now is the masks' size known (the pictures'): where no bound was given, the arches
-    // are simplified for it, as `track` simplifies them when it reads these masks.
-    if options.simplify_mm.is_none() && options.max_triangles.is_none() {
-        let bound = jawtrack::capture::resolution::simplify_mm(capture.cameras());
-        if Some(bound) != capture.simplified_mm() {
-            let options = jawtrack::capture::OpenOptions {
-                simplify_mm: Some(bound),
-                ..options
-            };
-            capture = Capture::open_with(&a.capture, options)
-                .with_context(|| format!("invalid capture {}", a.capture.display()))?;
-            sizes = prepare(&mut capture)?;
-        }
-    }
+    let (capture, sizes) = prepared(capture, &a.capture, options)?;
     let track_options = a.session_options(&capture)?;
-    let session = Session::open(&capture, track_options)?;
-    eprintln!("energy backend: {}", session.backend());
-    let todo = session.todo();
-    let mut segmenter = Segmenter::new(&capture, &sizes, segment_settings);
-    if let Some(dir) = &args.debug {
-        segmenter = segmenter.with_debug(dir.clone());
-    }
-    let bar = super::progress_bar(todo.len() as u64, "segmenting and tracking");
-    let summary = session.run_with(Some(&mut segmenter), &mut |r| {
-        bar.set_message(format!(
-            "segmenting and tracking ({})",
-            r.written_status().as_str()
-        ));
-        bar.inc(1);
-    })?;
-    bar.finish_and_clear();
+    let run = segment_and_track(
+        &capture,
+        &sizes,
+        track_options,
+        segment_settings,
+        args.debug.clone(),
+    )?;
+    let (summary, segmenter, todo) = (run.summary, run.segmenter, run.todo);
     super::report::track_summary(&a.output, &summary);
     if summary.tracked_now > 0 {
         println!(
@@ -138,4 +109,76 @@ pub fn run(mut args: Args) -> anyhow::Result<()> {
         super::report::score(&report);
     }
     Ok(())
+}
+
+/// `capture` (opened from `dir` with `options`) ready to segment: its init.json there, its
+/// pictures' sizes known (`segment::prepare`) and, where `options` gave no bound, its arches
+/// simplified for them, as `track` simplifies them when it reads the masks made here.
+pub(crate) fn prepared(
+    mut capture: Capture,
+    dir: &Path,
+    options: OpenOptions,
+) -> anyhow::Result<(Capture, Vec<(u32, u32)>)> {
+    if capture.init().is_none() {
+        anyhow::bail!(
+            "{}: not found: segment starts its colour models from the arches drawn at the first \
+             frame's poses (init.json's poses or bootstrap points); tracking without init.json \
+             needs masks",
+            capture.dir().join("init.json").display()
+        );
+    }
+    let mut sizes = prepare(&mut capture)?;
+    if options.simplify_mm.is_none() && options.max_triangles.is_none() {
+        let bound = jawtrack::capture::resolution::simplify_mm(capture.cameras());
+        if Some(bound) != capture.simplified_mm() {
+            let options = OpenOptions {
+                simplify_mm: Some(bound),
+                ..options
+            };
+            capture = Capture::open_with(dir, options)
+                .with_context(|| format!("invalid capture {}", dir.display()))?;
+            sizes = prepare(&mut capture)?;
+        }
+    }
+    Ok((capture, sizes))
+}
+
+/// A run of `segment`: the tracking summary, and the segmenter with its counts and time.
+pub(crate) struct SegmentRun<'c> {
+    pub summary: Summary,
+    pub segmenter: Segmenter<'c>,
+    /// The frames the run was asked for.
+    pub todo: Range<u32>,
+}
+
+/// Segments and tracks the frames `options` names, writing the masks into the capture's
+/// masks folder and the tracks where `options` says.
+pub(crate) fn segment_and_track<'c>(
+    capture: &'c Capture,
+    sizes: &[(u32, u32)],
+    options: SessionOptions,
+    settings: SegmentSettings,
+    debug: Option<PathBuf>,
+) -> anyhow::Result<SegmentRun<'c>> {
+    let session = Session::open(capture, options)?;
+    eprintln!("energy backend: {}", session.backend());
+    let todo = session.todo();
+    let mut segmenter = Segmenter::new(capture, sizes, settings);
+    if let Some(dir) = debug {
+        segmenter = segmenter.with_debug(dir);
+    }
+    let bar = super::progress_bar(session.todo().len() as u64, "segmenting and tracking");
+    let summary = session.run_with(Some(&mut segmenter), &mut |r| {
+        bar.set_message(format!(
+            "segmenting and tracking ({})",
+            r.written_status().as_str()
+        ));
+        bar.inc(1);
+    })?;
+    bar.finish_and_clear();
+    Ok(SegmentRun {
+        summary,
+        segmenter,
+        todo,
+    })
 }

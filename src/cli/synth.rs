@@ -1,8 +1,8 @@
 use std::path::PathBuf;
 
-use jawtrack::synth::{Photos, SynthOptions};
+use jawtrack::synth::SynthOptions;
 
-use super::args::{CameraRigArgs, JointArg, MaskKindArg, PresetArg};
+use super::args::{CameraRigArgs, JointArg, MaskKindArg, PhotosArg, PresetArg};
 
 #[derive(clap::Args)]
 pub struct Args {
@@ -76,12 +76,6 @@ pub struct Args {
     pub json: bool,
 }
 
-#[derive(Debug, Clone, Copy, clap::ValueEnum)]
-pub enum PhotosArg {
-    Clean,
-    Hard,
-}
-
 pub fn run(a: Args) -> anyhow::Result<()> {
     if a.face {
         return faces(a);
@@ -107,10 +101,7 @@ pub fn run(a: Args) -> anyhow::Result<()> {
         persistent_noise: a.persistent_noise,
         images: a.images,
         light_off: a.light_off.as_deref().map(light_off).transpose()?,
-        photos: match a.photos {
-            PhotosArg::Clean => Photos::Clean,
-            PhotosArg::Hard => Photos::Hard,
-        },
+        photos: a.photos.into(),
     };
     let report = super::run::synthesise(&out, &opts)?;
     if a.json {
