@@ -7,6 +7,7 @@ use jawtrack::segment::{SegmentSettings, Segmenter, prepare, score::score_masks}
 use jawtrack::track::{Session, SessionOptions, Summary, score_records};
 
 use super::args::read_settings;
+use super::track::TrackingArgs;
 
 #[derive(clap::Args)]
 pub struct Args {
@@ -28,21 +29,9 @@ pub struct Args {
 }
 
 pub fn run(mut args: Args) -> anyhow::Result<()> {
-    // Masks made here sit on the frame's colours, not on a person's brush: Gauss-Newton
-    // follows them to a tenth of a millimetre at a quarter of the paper's search's time
-    // (docs/footage.md), so it is segment's search unless one is asked for.
-    if args.run.how.search.is_none() && args.run.how.settings.is_none() {
-        args.run.how.search = Some(super::args::SearchArg::GaussNewton);
-    }
+    gauss_newton_unless_asked(&mut args.run.how);
     let a = &args.run;
-    let segment_settings = match &args.segment_settings {
-        None => SegmentSettings::default(),
-        Some(arg) => {
-            let (s, source): (SegmentSettings, _) = read_settings(arg, "segmentation settings")?;
-            s.validate(source)?;
-            s
-        }
-    };
+    let segment_settings = segment_settings(args.segment_settings.as_deref())?;
     let options = OpenOptions {
         masks_to_come: true,
         ..a.how.load.open_options()
@@ -181,4 +170,23 @@ pub(crate) fn segment_and_track<'c>(
         segmenter,
         todo,
     })
+}
+
+/// Masks made here sit on the frame's colours, not on a person's brush: Gauss-Newton follows
+/// them to a tenth of a millimetre at a quarter of the paper's search's time
+/// (docs/footage.md), so it is segment's search unless a search or settings are asked for.
+pub(crate) fn gauss_newton_unless_asked(how: &mut TrackingArgs) {
+    if how.search.is_none() && how.settings.is_none() {
+        how.search = Some(super::args::SearchArg::GaussNewton);
+    }
+}
+
+/// The segmentation settings `arg` gives (a file, or JSON itself), checked; else the defaults.
+pub(crate) fn segment_settings(arg: Option<&Path>) -> anyhow::Result<SegmentSettings> {
+    let Some(arg) = arg else {
+        return Ok(SegmentSettings::default());
+    };
+    let (s, source): (SegmentSettings, _) = read_settings(arg, "segmentation settings")?;
+    s.validate(source)?;
+    Ok(s)
 }

@@ -15,8 +15,10 @@ use jawtrack::synth::{SynthOptions, generate};
 use jawtrack::track::score::FlagScore;
 use jawtrack::track::{SessionOptions, score_records};
 
-use crate::cli::args::{PhotosArg, PresetArg, SearchArg, name_of, read_settings};
-use crate::cli::segment::{prepared, segment_and_track};
+use crate::cli::args::{PhotosArg, PresetArg, name_of};
+use crate::cli::segment::{
+    gauss_newton_unless_asked, prepared, segment_and_track, segment_settings,
+};
 use crate::cli::track::TrackingArgs;
 
 #[derive(clap::Args)]
@@ -78,18 +80,8 @@ struct SegmentRow {
 }
 
 pub fn segment(mut a: SegmentArgs) -> anyhow::Result<()> {
-    // As `segment`: Gauss-Newton unless a search or settings are asked for.
-    if a.how.search.is_none() && a.how.settings.is_none() {
-        a.how.search = Some(SearchArg::GaussNewton);
-    }
-    let settings = match &a.segment_settings {
-        None => SegmentSettings::default(),
-        Some(arg) => {
-            let (s, source): (SegmentSettings, _) = read_settings(arg, "segmentation settings")?;
-            s.validate(source)?;
-            s
-        }
-    };
+    gauss_newton_unless_asked(&mut a.how);
+    let settings = segment_settings(a.segment_settings.as_deref())?;
     let tmp = tempfile::tempdir()?;
     let mut sets: Vec<(String, PathBuf)> = Vec::new();
     if !a.captures_only {
