@@ -233,16 +233,17 @@ impl CameraRigArgs {
     }
 }
 
-/// Settings from a `--settings` argument: a JSON file, or the JSON itself when the argument
-/// starts with `{` (errors then name `--settings` where they would name the file); with the
-/// name its errors go by.
+/// Settings from the argument of option `flag` (`--settings`): a JSON file, or the JSON itself
+/// when the argument starts with `{` (errors then name `flag` where they would name the file);
+/// with the name its errors go by.
 pub fn read_settings<'a, T: serde::de::DeserializeOwned>(
     arg: &'a Path,
     what: &str,
+    flag: &'static str,
 ) -> anyhow::Result<(T, &'a Path)> {
     match arg.to_str().map(str::trim_start) {
         Some(text) if text.starts_with('{') => {
-            let source = Path::new("--settings");
+            let source = Path::new(flag);
             Ok((jawtrack::io::parse_json(text, source)?, source))
         }
         _ => Ok((jawtrack::io::read_json(arg, what)?, arg)),
@@ -259,7 +260,7 @@ pub fn track_settings(
         None => jawtrack::track::TrackSettings::default(),
         Some(arg) => {
             let (settings, source): (jawtrack::track::TrackSettings, _) =
-                read_settings(arg, "settings file")?;
+                read_settings(arg, "settings file", "--settings")?;
             settings.validate_from(source)?;
             settings
         }
@@ -290,7 +291,8 @@ pub fn rig_settings(arg: Option<&Path>) -> anyhow::Result<jawtrack::rig::RigSett
     let Some(arg) = arg else {
         return Ok(Default::default());
     };
-    let (settings, source): (jawtrack::rig::RigSettings, _) = read_settings(arg, "rig settings")?;
+    let (settings, source): (jawtrack::rig::RigSettings, _) =
+        read_settings(arg, "rig settings", "--settings")?;
     settings.validate(source)?;
     Ok(settings)
 }

@@ -186,7 +186,8 @@ pub(crate) fn segment_settings(arg: Option<&Path>) -> anyhow::Result<SegmentSett
     let Some(arg) = arg else {
         return Ok(SegmentSettings::default());
     };
-    let (s, source): (SegmentSettings, _) = read_settings(arg, "segmentation settings")?;
+    let (s, source): (SegmentSettings, _) =
+        read_settings(arg, "segmentation settings", "--segment-settings")?;
     s.validate(source)?;
     Ok(s)
 }
