@@ -57,7 +57,7 @@ pub fn run(mut args: Args) -> anyhow::Result<()> {
              teeth alone (add e.g. \"mouth\": 40 to keep the mouth interior)"
         );
     }
-    let (capture, sizes) = prepared(capture, &a.capture, options)?;
+    let (capture, sizes) = prepared(capture, options)?;
     let track_options = a.session_options(&capture)?;
     let run = segment_and_track(
         &capture,
@@ -100,12 +100,11 @@ pub fn run(mut args: Args) -> anyhow::Result<()> {
     Ok(())
 }
 
-/// `capture` (opened from `dir` with `options`) ready to segment: its init.json there, its
+/// `capture` (opened with `options`) ready to segment: its init.json there, its
 /// pictures' sizes known (`segment::prepare`) and, where `options` gave no bound, its arches
 /// simplified for them, as `track` simplifies them when it reads the masks made here.
 pub(crate) fn prepared(
     mut capture: Capture,
-    dir: &Path,
     options: OpenOptions,
 ) -> anyhow::Result<(Capture, Vec<(u32, u32)>)> {
     if capture.init().is_none() {
@@ -124,7 +123,8 @@ pub(crate) fn prepared(
                 simplify_mm: Some(bound),
                 ..options
             };
-            capture = Capture::open_with(dir, options)
+            let dir = capture.dir().to_path_buf();
+            capture = Capture::open_with(&dir, options)
                 .with_context(|| format!("invalid capture {}", dir.display()))?;
             sizes = prepare(&mut capture)?;
         }

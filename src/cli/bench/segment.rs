@@ -179,7 +179,7 @@ fn measure(
     };
     let capture =
         Capture::open_with(dir, options).with_context(|| format!("invalid capture {name}"))?;
-    let (capture, sizes) = prepared(capture, dir, options)?;
+    let (capture, sizes) = prepared(capture, options)?;
     let out = dir.join("tracks.json");
     let session = SessionOptions {
         backend: a.how.backend(),
