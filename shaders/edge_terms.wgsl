@@ -51,6 +51,9 @@ struct Params {
 @group(0) @binding(3) var masks: texture_2d_array<u32>;
 // Per sample: offset, weight, energy, 1 where it has a term (else all 0).
 @group(0) @binding(4) var<storage, read_write> terms: array<vec4<f32>>;
+// How much of each pixel each arch's teeth hold (r upper, g lower): a mask's soft evidence,
+// else its labels as 0 or 1.
+@group(0) @binding(5) var evidence: texture_2d_array<f32>;
 
 fn increment(arch: u32, k: u32) -> f32 {
     let i = arch * 6u + k;
@@ -64,17 +67,25 @@ fn label(view: View, i: i32, j: i32) -> u32 {
     return textureLoad(masks, vec2<i32>(i, j), i32(view.layer), 0).r;
 }
 
-// The arch's label at a position, bilinear between pixel centres (`bilinear` of
-// src/energy/contour).
-fn on(view: View, bit: u32, x: vec2<f32>) -> f32 {
+// How much of the pixel the arch's teeth hold (0 off the mask).
+fn held(view: View, arch: u32, i: i32, j: i32) -> f32 {
+    if i < 0 || j < 0 || i >= i32(view.width) || j >= i32(view.height) {
+        return 0.0;
+    }
+    return textureLoad(evidence, vec2<i32>(i, j), i32(view.layer), 0)[arch];
+}
+
+// The arch's teeth at a position, bilinear between pixel centres (`label_read` of
+// src/energy/edge_terms.rs).
+fn on(view: View, arch: u32, x: vec2<f32>) -> f32 {
     let f = floor(x);
     let t = x - f;
     let i = i32(f.x);
     let j = i32(f.y);
-    let a = f32((label(view, i, j) & bit) != 0u);
-    let b = f32((label(view, i + 1, j) & bit) != 0u);
-    let c = f32((label(view, i, j + 1) & bit) != 0u);
-    let d = f32((label(view, i + 1, j + 1) & bit) != 0u);
+    let a = held(view, arch, i, j);
+    let b = held(view, arch, i + 1, j);
+    let c = held(view, arch, i, j + 1);
+    let d = held(view, arch, i + 1, j + 1);
     return (1.0 - t.y) * ((1.0 - t.x) * a + t.x * b) + t.y * ((1.0 - t.x) * c + t.x * d);
 }
 
@@ -98,18 +109,18 @@ struct Offset {
 
 // `edge_offset`: where the mask falls through one half, from inside to outside, nearest the
 // sample within the reach.
-fn edge_offset(view: View, bit: u32, p: vec2<f32>, n: vec2<f32>) -> Offset {
+fn edge_offset(view: View, arch: u32, p: vec2<f32>, n: vec2<f32>) -> Offset {
     let step = 0.5;
     let steps = u32(ceil(params.reach / step));
-    var ahead = on(view, bit, p) - 0.5;
+    var ahead = on(view, arch, p) - 0.5;
     var behind = ahead;
     for (var k = 0u; k < steps; k++) {
         let d0 = f32(k) * step;
         let d1 = f32(k + 1u) * step;
-        let next_ahead = on(view, bit, p + d1 * n) - 0.5;
+        let next_ahead = on(view, arch, p + d1 * n) - 0.5;
         let forward = ahead >= 0.0 && next_ahead < 0.0;
         let f = d0 + step * ahead / (ahead - next_ahead);
-        let next_behind = on(view, bit, p - d1 * n) - 0.5;
+        let next_behind = on(view, arch, p - d1 * n) - 0.5;
         let backward = next_behind >= 0.0 && behind < 0.0;
         let b = -d1 + step * next_behind / (next_behind - behind);
         if forward && backward {
@@ -164,7 +175,7 @@ fn edge_terms(@builtin(global_invocation_id) id: vec3<u32>) {
     let view = views[s.view];
     let own = select(params.upper_bit, params.lower_bit, s.arch == 1u);
     let other = select(params.lower_bit, params.upper_bit, s.arch == 1u);
-    let found = edge_offset(view, own, moved, s.normal);
+    let found = edge_offset(view, s.arch, moved, s.normal);
     if !found.found {
         return;
     }

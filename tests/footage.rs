@@ -485,7 +485,9 @@ fn segment_makes_masks_from_colour_frames() {
     assert!(!again.status.success());
     assert_mentions(&String::from_utf8_lossy(&again.stderr), &["--force"]);
 
-    // The bench segments a copy: its figures are segment's, and the masks given stay.
+    // The bench segments a copy: its figures are segment's, and the masks given stay. It
+    // tracks from the soft evidence here, so that the shares' path (segment, the masks'
+    // reduction and pyramid, the energy) runs end to end.
     let mask = cap.join("masks/cam1/000003.png");
     let before = std::fs::read(&mask).unwrap();
     std::fs::write(&mask, b"not a picture").unwrap();
@@ -497,6 +499,8 @@ fn segment_makes_masks_from_colour_frames() {
         "--captures-only",
         "--capture",
         s(&cap),
+        "--segment-settings",
+        r#"{"soft_evidence": true}"#,
         "--json",
     ]);
     let rows: serde_json::Value = serde_json::from_str(&json).unwrap();

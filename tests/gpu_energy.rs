@@ -6,7 +6,7 @@ mod common;
 
 use common::template;
 use jawtrack::arch::{Arch, ArchPoses};
-use jawtrack::capture::{Capture, FrameMasks, LabelMask, MaskMode};
+use jawtrack::capture::{Capture, FrameMasks, LOWER_BIT, LabelMask, MaskMode, UPPER_BIT};
 use jawtrack::energy::contour::ContourEdges;
 use jawtrack::energy::edge_terms::{EdgeParams, EdgeQuery};
 use jawtrack::energy::gpu::{GpuEnergy, GpuError};
@@ -53,6 +53,7 @@ fn labelled_mask(rects: &[(PixelRect, u8)]) -> FrameMasks {
     FrameMasks {
         frame: 0,
         masks: vec![Some(LabelMask {
+            soft: None,
             width: 100,
             height: 80,
             data,
@@ -342,7 +343,10 @@ fn gpu_matches_cpu_through_rational_and_fisheye_lenses() {
 /// cross-label and over-mouth weights, the other arch's label), the samples drawn 0.5-1 px off
 /// the truth and moved by a further increment, at the masks' resolution and at the pyramid's
 /// half; and the GPU's gradient against central differences of its own energy.
-fn compare_edge_terms(capture: &std::path::Path, what: &str) {
+///
+/// `soft`: the masks carry soft evidence (each arch's label box-blurred over 3 x 3 pixels, so
+/// every edge pixel holds a share), which the engines read in place of the labels.
+fn compare_edge_terms(capture: &std::path::Path, what: &str, soft: bool) {
     let c = Capture::open(capture).unwrap();
     let scene = Scene::from_capture(&c);
     let Some(mut g) = gpu(scene.clone(), Region::Footprint) else {
@@ -355,7 +359,12 @@ fn compare_edge_terms(capture: &std::path::Path, what: &str) {
     // The last at the pyramid's half resolution, as Gauss-Newton's coarse stage reads it.
     for (f, level) in [(0, 0), (4, 0), (4, 1)] {
         let what = format!("{what}, level {level}");
-        let frame = c.load_masks(f).unwrap();
+        let mut frame = c.load_masks(f).unwrap();
+        if soft {
+            for m in frame.masks.iter_mut().flatten() {
+                m.soft = Some(box_blurred(m));
+            }
+        }
         g.set_frame(&frame).unwrap();
         cpu.set_frame(&frame).unwrap();
         let views: Vec<usize> = (0..scene.cameras.len())
@@ -396,6 +405,27 @@ fn compare_edge_terms(capture: &std::path::Path, what: &str) {
             },
         };
         let (tc, tg) = (cpu.edge_terms(&q).unwrap(), g.edge_terms(&q).unwrap());
+        if soft {
+            // The evidence is read: the edges it shows lie elsewhere than the labels'.
+            let mut labels_only = CpuEnergy::new(scene.clone());
+            let mut hard = frame.clone();
+            hard.masks.iter_mut().flatten().for_each(|m| m.soft = None);
+            labels_only.set_frame(&hard).unwrap();
+            let th = labels_only.edge_terms(&q).unwrap();
+            let moved = tc
+                .iter()
+                .zip(&th)
+                .filter(|(a, b)| match (a, b) {
+                    (Some(a), Some(b)) => (a.offset_px - b.offset_px).abs() > 0.05,
+                    _ => true,
+                })
+                .count();
+            assert!(
+                moved * 5 > samples.len(),
+                "{what}: {moved} of {}",
+                samples.len()
+            );
+        }
         assert_eq!(tc.len(), samples.len());
         assert_eq!(tg.len(), samples.len());
         for (a, b) in tc.iter().zip(&tg) {
@@ -455,8 +485,33 @@ fn compare_edge_terms(capture: &std::path::Path, what: &str) {
     );
 }
 
+/// Each arch's label of `m` (255 on it) averaged over the 3 x 3 pixels around each pixel.
+fn box_blurred(m: &LabelMask) -> Vec<[u8; 2]> {
+    let (w, h) = (m.width as i64, m.height as i64);
+    (0..w * h)
+        .map(|i| {
+            let (x, y) = (i % w, i / w);
+            [UPPER_BIT, LOWER_BIT].map(|bit| {
+                let mut on = 0u32;
+                for yy in (y - 1).max(0)..(y + 2).min(h) {
+                    for xx in (x - 1).max(0)..(x + 2).min(w) {
+                        on += (m.data[(yy * w + xx) as usize] & bit != 0) as u32;
+                    }
+                }
+                (on * 255 / 9) as u8
+            })
+        })
+        .collect()
+}
+
 #[test]
 fn gpu_edge_terms_match_the_cpu_twin() {
-    compare_edge_terms(template(Preset::Realistic, MaskKind::PerArch), "per-arch");
-    compare_edge_terms(template(Preset::Realistic, MaskKind::Combined), "combined");
+    let per_arch = template(Preset::Realistic, MaskKind::PerArch);
+    compare_edge_terms(per_arch, "per-arch", false);
+    compare_edge_terms(per_arch, "per-arch, soft evidence", true);
+    compare_edge_terms(
+        template(Preset::Realistic, MaskKind::Combined),
+        "combined",
+        false,
+    );
 }

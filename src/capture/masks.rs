@@ -94,6 +94,10 @@ pub struct LabelMask {
     pub width: u32,
     pub height: u32,
     pub data: Vec<u8>,
+    /// Per pixel, how much of it each arch's teeth hold (upper, lower; 255 all of it): the
+    /// evidence a segmentation weighed its labels from, which the smooth energy reads in
+    /// their place (`segment`'s masks, never a file's). `None`: the labels alone.
+    pub soft: Option<Vec<[u8; 2]>>,
 }
 
 impl LabelMask {
@@ -135,7 +139,25 @@ impl LabelMask {
                         .expect("a tied label");
                 }
             });
+        // How much of a block each arch's teeth hold is the mean of its pixels'.
+        let soft = self.soft.as_ref().map(|soft| {
+            (0..w * h)
+                .map(|i| {
+                    let (bx, by) = (i % w, i / w);
+                    let mut sum = [0u32; 2];
+                    for y in by * k..(by + 1) * k {
+                        for s in &soft[y * width + bx * k..y * width + (bx + 1) * k] {
+                            sum[0] += s[0] as u32;
+                            sum[1] += s[1] as u32;
+                        }
+                    }
+                    let n = (k * k) as u32;
+                    sum.map(|v| ((v + n / 2) / n) as u8)
+                })
+                .collect()
+        });
         LabelMask {
+            soft,
             width: w as u32,
             height: h as u32,
             data,
@@ -239,6 +261,7 @@ pub fn decode_mask(path: &Path, mode: MaskMode, mouth: Option<u8>) -> Result<Lab
         }
     };
     Ok(LabelMask {
+        soft: None,
         width,
         height,
         data: grey.into_iter().map(|v| mode.label_of(v, mouth)).collect(),
@@ -315,6 +338,7 @@ mod tests {
 
     fn mask(width: u32, rows: &[&[u8]]) -> LabelMask {
         LabelMask {
+            soft: None,
             width,
             height: rows.len() as u32,
             data: rows.concat(),
@@ -342,6 +366,24 @@ mod tests {
             vec![1, 2, 0, 0, tie(1, 1, &[0, 1]), tie(2, 1, &[0, 2]),]
         );
         assert_eq!(m.clone().reduced(1), m);
+    }
+
+    /// A block's share of each arch's teeth is the mean of its pixels' shares.
+    #[test]
+    fn a_reduced_mask_s_evidence_is_each_blocks_mean() {
+        let mut m = mask(4, &[&[1, 1, 0, 0], &[1, 1, 0, 2]]);
+        m.soft = Some(vec![
+            [255, 0],
+            [200, 0],
+            [100, 0],
+            [0, 0],
+            [255, 0],
+            [255, 10],
+            [0, 0],
+            [0, 90],
+        ]);
+        let r = m.reduced(2);
+        assert_eq!(r.soft, Some(vec![[241, 3], [25, 23]]));
     }
 
     #[test]

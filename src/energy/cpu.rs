@@ -344,6 +344,7 @@ mod tests {
         e.set_frame(&FrameMasks {
             frame: 0,
             masks: vec![Some(LabelMask {
+                soft: None,
                 width: 100,
                 height: 80,
                 data,

@@ -11,7 +11,7 @@ use nalgebra::{Vector2, Vector6};
 use rayon::prelude::*;
 
 use super::Weights;
-use super::contour::{ContourPoint, bilinear};
+use super::contour::{ContourPoint, bilinear, bilinear_by};
 use crate::arch::Arch;
 use crate::capture::LabelMask;
 use crate::capture::masks::MOUTH_BIT;
@@ -201,10 +201,19 @@ pub fn terms(
         .collect()
 }
 
-/// A label mask's `arch` label: 1 on it, 0 off it, bilinear between pixel centres.
+/// A label mask's `arch` label: 1 on it, 0 off it, or how much of a pixel the arch's teeth
+/// hold where the mask carries soft evidence; bilinear between pixel centres.
 pub fn label_read(m: &LabelMask, arch: Arch) -> impl Fn(Vector2<f64>) -> f64 + Sync + '_ {
-    let (w, h, bit) = (m.width as usize, m.height as usize, arch.mask_bit());
-    move |x: Vector2<f64>| bilinear(&m.data, w, h, |v| v & bit != 0, x)
+    let (w, h, bit, a) = (
+        m.width as usize,
+        m.height as usize,
+        arch.mask_bit(),
+        arch.index(),
+    );
+    move |x: Vector2<f64>| match &m.soft {
+        Some(soft) => bilinear_by(w, h, |i| soft[i][a] as f64 / 255.0, x),
+        None => bilinear(&m.data, w, h, |v| v & bit != 0, x),
+    }
 }
 
 /// What any pixel of `arch`'s model costs at the pixel nearest a position of a label mask,

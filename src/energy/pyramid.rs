@@ -48,7 +48,13 @@ fn halved(m: &LabelMask) -> LabelMask {
                 *label = v;
             }
         });
+    let soft = m.soft.as_ref().map(|soft| {
+        (0..hw * hh)
+            .map(|i| soft[2 * (i / hw) * w + 2 * (i % hw)])
+            .collect()
+    });
     LabelMask {
+        soft,
         width: hw as u32,
         height: hh as u32,
         data,
@@ -114,6 +120,7 @@ mod tests {
         let (w, h) = (33u32, 21u32);
         let data: Vec<u8> = (0..w * h).map(|i| (i * 7 % 5) as u8).collect();
         let m0 = LabelMask {
+            soft: None,
             width: w,
             height: h,
             data,
@@ -130,5 +137,25 @@ mod tests {
             }
         }
         assert_eq!(mask(&m0, 0), m0);
+        // The soft evidence with them.
+        let soft: Vec<[u8; 2]> = (0..w * h)
+            .map(|i| [(i % 251) as u8, (i % 7) as u8])
+            .collect();
+        let m = mask(
+            &LabelMask {
+                soft: Some(soft.clone()),
+                ..m0
+            },
+            1,
+        );
+        let halved = m.soft.expect("evidence");
+        for y in 0..11 {
+            for x in 0..17 {
+                assert_eq!(
+                    halved[(y * 17 + x) as usize],
+                    soft[(2 * y * w + 2 * x) as usize]
+                );
+            }
+        }
     }
 }

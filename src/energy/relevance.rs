@@ -88,6 +88,7 @@ mod tests {
     fn tiles_know_where_the_labels_are() {
         // A 30 x 20 mask with label 1 at (13, 9) and label 2 at (29, 19).
         let mut mask = LabelMask {
+            soft: None,
             width: 30,
             height: 20,
             data: vec![0; 600],

@@ -19,7 +19,7 @@ const WINDOW: usize = 3;
 const MIN_CONTRAST: f32 = 0.03;
 
 /// Each colour as linear light.
-fn linear_colours(colours: &[[u8; 3]]) -> Vec<[f32; 3]> {
+pub(super) fn linear_colours(colours: &[[u8; 3]]) -> Vec<[f32; 3]> {
     let lut = linear_table();
     colours.iter().map(|c| c.map(|v| lut[v as usize])).collect()
 }
@@ -65,7 +65,7 @@ const MIX_TOLERANCE: f32 = 0.15;
 /// Colour `c` read as a mix of `a` and `b`: the share of `a` along the line from `b` to `a`,
 /// and how far off that line `c` lies (as a share of the line's length). `None` where the
 /// two are about the same colour: then they say nothing about the mix.
-fn mix(c: [f32; 3], a: [f32; 3], b: [f32; 3]) -> Option<(f32, f32)> {
+pub(super) fn mix(c: [f32; 3], a: [f32; 3], b: [f32; 3]) -> Option<(f32, f32)> {
     let line: [f32; 3] = std::array::from_fn(|k| a[k] - b[k]);
     let length = line.iter().map(|v| v * v).sum::<f32>();
     if length < MIN_CONTRAST * MIN_CONTRAST {
@@ -153,7 +153,7 @@ fn other_side(classes: &[u8], w: usize, h: usize, x: usize, y: usize) -> Option<
 }
 
 /// The mean linear colour of the `inner` pixels of class `k` within [`WINDOW`] of (x, y).
-fn local_mean(
+pub(super) fn local_mean(
     colours: &[[f32; 3]],
     inner: &[u8],
     w: usize,

@@ -10,6 +10,7 @@ mod arches;
 pub mod colour_model;
 mod distance;
 mod edges;
+mod evidence;
 pub mod graph_cut;
 mod opening;
 pub mod picture;
@@ -232,8 +233,12 @@ impl<'c> Segmenter<'c> {
                 &encode_png(&posteriors, w, h, image::ExtendedColorType::Rgb8),
             )?;
         }
-        let (labels, lesson) = match outcome {
-            Outcome::Labels(l, lesson) => (l, lesson),
+        let (labels, soft, lesson) = match outcome {
+            Outcome::Labels {
+                labels,
+                soft,
+                lesson,
+            } => (labels, soft, lesson),
             Outcome::Dark => {
                 counts.dark += 1;
                 return remove_stale(&mask_path).map(|_| (None, None));
@@ -250,6 +255,14 @@ impl<'c> Segmenter<'c> {
             &encode_png(&values, w, h, image::ExtendedColorType::L8),
         )?;
         let mask = LabelMask {
+            soft: self
+                .settings
+                .soft_evidence
+                .then(|| match capture.mask_mode() {
+                    MaskMode::PerArch { .. } => soft,
+                    // One label covers both arches, and so does their evidence.
+                    MaskMode::Combined => soft.into_iter().map(|[u, l]| [u.max(l); 2]).collect(),
+                }),
             width: w,
             height: h,
             // As the tracker reads a written mask back: the mouth only when declared.

@@ -23,6 +23,9 @@ pub struct SegmentSettings {
     pub dark_ratio: f64,
     /// The fewest pixels a class needs to learn its colours from.
     pub min_pixels: usize,
+    /// Track from the soft evidence (how much of each edge pixel the teeth hold, from its
+    /// colour) rather than from the labels alone; the masks written are the labels either way.
+    pub soft_evidence: bool,
 }
 
 impl Default for SegmentSettings {
@@ -34,6 +37,7 @@ impl Default for SegmentSettings {
             learning_rounds: 4,
             dark_ratio: 0.5,
             min_pixels: 20,
+            soft_evidence: false,
         }
     }
 }

@@ -298,6 +298,7 @@ fn moved_one_pixel(m: &LabelMask, inwards: bool) -> LabelMask {
         }
     }
     LabelMask {
+        soft: None,
         width: m.width,
         height: m.height,
         data,
@@ -315,6 +316,7 @@ mod tests {
         FrameMasks {
             frame: 0,
             masks: vec![Some(LabelMask {
+                soft: None,
                 width: data.len() as u32,
                 height: 1,
                 data,

@@ -365,6 +365,7 @@ mod tests {
                 .iter()
                 .map(|data| {
                     Some(LabelMask {
+                        soft: None,
                         width: 640,
                         height: 480,
                         data: data.clone(),

@@ -308,13 +308,24 @@ pub fn bilinear(
     on: impl Fn(u8) -> bool,
     x: Vector2<f64>,
 ) -> f64 {
+    bilinear_by(width, height, |i| on(mask[i]) as u8 as f64, x)
+}
+
+/// A picture's value at a pixel position, bilinear between pixel centres (0 outside it);
+/// `value(i)`: the value of the pixel at row-major index `i`.
+pub fn bilinear_by(
+    width: usize,
+    height: usize,
+    value: impl Fn(usize) -> f64,
+    x: Vector2<f64>,
+) -> f64 {
     let (fx, fy) = (floor(x.x), floor(x.y));
     let (tx, ty) = (x.x - fx, x.y - fy);
     let at = |i: f64, j: f64| {
         if i < 0.0 || j < 0.0 || i >= width as f64 || j >= height as f64 {
             return 0.0;
         }
-        on(mask[j as usize * width + i as usize]) as u8 as f64
+        value(j as usize * width + i as usize)
     };
     (1.0 - ty) * ((1.0 - tx) * at(fx, fy) + tx * at(fx + 1.0, fy))
         + ty * ((1.0 - tx) * at(fx, fy + 1.0) + tx * at(fx + 1.0, fy + 1.0))

@@ -63,6 +63,10 @@ pub struct GpuEnergy {
     depth_view: wgpu::TextureView,
     masks: wgpu::Texture,
     masks_view: wgpu::TextureView,
+    /// Per layer of `masks`: how much of each pixel each arch's teeth hold (r upper, g lower),
+    /// the labels' own 0 or 1 where a mask has no soft evidence; the smooth energy reads it.
+    evidence: wgpu::Texture,
+    evidence_view: wgpu::TextureView,
     /// Per camera: the frame's mask totals per scored arch (upper, lower; see
     /// `mask_totals`), or `None` without a mask.
     frame: Vec<Option<PerArch<MaskTotals>>>,
@@ -153,10 +157,18 @@ impl GpuEnergy {
             wgpu::TextureUsages::TEXTURE_BINDING | wgpu::TextureUsages::COPY_DST,
             (mask_w, mask_h, layers),
         );
-        let masks_view = masks.create_view(&wgpu::TextureViewDescriptor {
+        let array = wgpu::TextureViewDescriptor {
             dimension: Some(wgpu::TextureViewDimension::D2Array),
             ..Default::default()
-        });
+        };
+        let masks_view = masks.create_view(&array);
+        let evidence = texture(
+            "evidence",
+            wgpu::TextureFormat::Rg8Unorm,
+            wgpu::TextureUsages::TEXTURE_BINDING | wgpu::TextureUsages::COPY_DST,
+            (mask_w, mask_h, layers),
+        );
+        let evidence_view = evidence.create_view(&array);
         let meshes = [
             GpuMesh::new(device, &scene.upper, "upper"),
             GpuMesh::new(device, &scene.lower, "lower"),
@@ -170,6 +182,8 @@ impl GpuEnergy {
             depth_view: depth.create_view(&Default::default()),
             masks,
             masks_view,
+            evidence,
+            evidence_view,
             meshes,
             pipelines,
             region,
@@ -206,11 +220,33 @@ struct Tile {
 }
 
 impl GpuEnergy {
-    /// Upload a mask into its layer of the masks texture.
+    /// Upload a mask into its layer of the masks texture, and its evidence into the
+    /// evidence texture's.
     fn write_mask(&self, layer: usize, m: &LabelMask) {
+        let evidence: Vec<u8> = match &m.soft {
+            Some(soft) => soft.iter().flatten().copied().collect(),
+            None => m
+                .data
+                .iter()
+                .flat_map(|&v| Arch::BOTH.map(|a| if v & a.mask_bit() != 0 { 255 } else { 0 }))
+                .collect(),
+        };
+        self.write_layer(&self.masks, layer, m, &m.data, 1);
+        self.write_layer(&self.evidence, layer, m, &evidence, 2);
+    }
+
+    /// `data` (`bytes` a pixel, `m`'s size) into `layer` of `texture`.
+    fn write_layer(
+        &self,
+        texture: &wgpu::Texture,
+        layer: usize,
+        m: &LabelMask,
+        data: &[u8],
+        bytes: u32,
+    ) {
         self.ctx.queue.write_texture(
             wgpu::TexelCopyTextureInfo {
-                texture: &self.masks,
+                texture,
                 mip_level: 0,
                 origin: wgpu::Origin3d {
                     x: 0,
@@ -219,10 +255,10 @@ impl GpuEnergy {
                 },
                 aspect: wgpu::TextureAspect::All,
             },
-            &m.data,
+            data,
             wgpu::TexelCopyBufferLayout {
                 offset: 0,
-                bytes_per_row: Some(m.width),
+                bytes_per_row: Some(bytes * m.width),
                 rows_per_image: Some(m.height),
             },
             wgpu::Extent3d {

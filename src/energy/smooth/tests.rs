@@ -70,6 +70,7 @@ impl Fixture {
             .zip(masks)
             .map(|(c, data)| {
                 Some(LabelMask {
+                    soft: None,
                     width: c.width,
                     height: c.height,
                     data,

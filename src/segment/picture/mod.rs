@@ -8,13 +8,15 @@
 use super::arches::split_arches;
 use super::colour_model::{ColourModel, luma};
 use super::distance::{distance_transform, mouth_span_distance};
-use super::edges::{refine_edges, settle_gaps};
+use super::edges::{neighbours4, refine_edges, settle_gaps};
+use super::evidence::teeth_shares;
 use super::graph_cut::GridCut;
 use super::opening::inside_the_lips;
 use super::seeds::{initial_classes, learn_interior};
 use super::settings::SegmentSettings;
 use super::smoothness::{contrast, set_pairs};
 use crate::capture::masks::MOUTH_BIT;
+use crate::capture::{LOWER_BIT, UPPER_BIT};
 pub use lesson::Lesson;
 
 /// How the teeth's colour model falls off a luma level into shade
@@ -42,7 +44,14 @@ pub enum Outcome {
     /// Label bits per pixel (UPPER_BIT, LOWER_BIT, MOUTH_BIT), the whole picture, and what
     /// the picture has to teach the models once the frame is tracked (none on the picture
     /// they were first learned from).
-    Labels(Vec<u8>, Option<Lesson>),
+    Labels {
+        labels: Vec<u8>,
+        /// Per pixel, how much of it each arch's teeth hold (upper, lower; 0-255): the
+        /// labels, but along the teeth's edges the share the pixel's colour gives them
+        /// ([`super::evidence`]).
+        soft: Vec<[u8; 2]>,
+        lesson: Option<Lesson>,
+    },
     /// The models project nowhere into the picture.
     OutOfView,
     /// Much darker than the colour models were learned in (the lights were off).
@@ -130,20 +139,13 @@ pub fn segment_picture(
     let Some(classes) = classes else {
         return Outcome::OutOfView;
     };
-    let classes = settle_gaps(
-        &colours,
-        &classes,
-        &eroded(&classes, roi.w, roi.h),
-        roi.w,
-        roi.h,
-    );
-    let classes = refine_edges(
-        &colours,
-        &classes,
-        &eroded(&classes, roi.w, roi.h),
-        roi.w,
-        roi.h,
-    );
+    // A pass over the classes' edges by colour, each side's colour read from its pixels away
+    // from its edges.
+    type ByColour = fn(&[[u8; 3]], &[u8], &[u8], usize, usize) -> Vec<u8>;
+    let by_colour =
+        |pass: ByColour, c: &[u8]| pass(&colours, c, &eroded(c, roi.w, roi.h), roi.w, roi.h);
+    let classes = by_colour(settle_gaps, &classes);
+    let classes = by_colour(refine_edges, &classes);
     if let (Some(out), Some(m)) = (posteriors, models.as_ref()) {
         *out = posterior_picture(&likelihoods(&colours, &priors, m), roi, width, height);
     }
@@ -162,6 +164,13 @@ pub fn segment_picture(
         reach,
     );
     let labels = picture_labels(&opened, &arches, roi, width, height);
+    let soft = picture_shares(
+        &by_colour(teeth_shares, &opened),
+        &arches,
+        roi,
+        width,
+        height,
+    );
     let lesson = (!learning).then_some(Lesson {
         colours,
         classes,
@@ -169,7 +178,11 @@ pub fn segment_picture(
         roi,
         mean_luma,
     });
-    Outcome::Labels(labels, lesson)
+    Outcome::Labels {
+        labels,
+        soft,
+        lesson,
+    }
 }
 
 /// Spatial priors per ROI pixel (teeth, mouth interior, the rest): teeth only near the models'
@@ -244,6 +257,40 @@ fn picture_labels(classes: &[u8], arches: &[u8], roi: Roi, width: usize, height:
         };
     }
     labels
+}
+
+/// The whole picture's soft evidence from the ROI's teeth shares: a tooth's share goes to its
+/// arch (`arches`), a share beside teeth to the arch of the teeth beside it.
+fn picture_shares(
+    shares: &[u8],
+    arches: &[u8],
+    roi: Roi,
+    width: usize,
+    height: usize,
+) -> Vec<[u8; 2]> {
+    let mut soft = vec![[0u8; 2]; width * height];
+    for (i, &share) in shares.iter().enumerate() {
+        if share == 0 {
+            continue;
+        }
+        let arch = if arches[i] != 0 {
+            arches[i]
+        } else {
+            let (x, y) = (i % roi.w, i / roi.w);
+            let Some(j) = neighbours4(roi.w, roi.h, x, y).find(|&j| arches[j] != 0) else {
+                continue;
+            };
+            arches[j]
+        };
+        let (x, y) = roi.at(i);
+        let slot = &mut soft[y * width + x];
+        if arch & UPPER_BIT != 0 {
+            slot[0] = share;
+        } else if arch & LOWER_BIT != 0 {
+            slot[1] = share;
+        }
+    }
+    soft
 }
 
 /// The prior's bounding box, widened by a third of its height and a sixth of its width.

@@ -40,7 +40,7 @@ fn teeth_and_mouth_come_out_where_the_colours_are_despite_an_offset_prior() {
         ..SegmentSettings::default()
     };
     let mut models = None;
-    let Outcome::Labels(labels, _) =
+    let Outcome::Labels { labels, .. } =
         segment_picture(&rgb, w, h, &prior, &mut models, &settings, None)
     else {
         panic!("the prior is in view and the picture is lit");
@@ -121,7 +121,7 @@ fn the_mouth_interior_is_learned_once_a_picture_shows_it() {
     };
     let mut models = None;
     let (rgb, truth, prior) = mouth_picture(0);
-    let Outcome::Labels(labels, _) =
+    let Outcome::Labels { labels, .. } =
         segment_picture(&rgb, w, h, &prior, &mut models, &settings, None)
     else {
         panic!("in view and lit");
@@ -131,7 +131,7 @@ fn the_mouth_interior_is_learned_once_a_picture_shows_it() {
     assert!(iou(&labels, &truth, UPPER_BIT) > 0.8);
     let (rgb, truth, prior) = mouth_picture(8);
     let mut posteriors = Vec::new();
-    let Outcome::Labels(labels, _) = segment_picture(
+    let Outcome::Labels { labels, .. } = segment_picture(
         &rgb,
         w,
         h,
