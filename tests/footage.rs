@@ -440,7 +440,8 @@ fn masks_from_sam2_objects_and_a_cvat_export() {
 /// below what this writes today (docs/footage.md), so does the mouth interior (whose first
 /// pictures show the mouth closed: its lips must not be learned as the interior), `--debug`
 /// writes every picture's posteriors, and the masks made are refused as overwritable
-/// without --force.
+/// without --force. Tracked from the soft evidence, so that the shares' path (segment, the
+/// masks' pyramid, the energy) runs end to end, and `--debug` writes the shares too.
 #[test]
 fn segment_makes_masks_from_colour_frames() {
     let tmp = tempfile::tempdir().unwrap();
@@ -458,6 +459,8 @@ fn segment_makes_masks_from_colour_frames() {
         "cpu",
         "--debug",
         s(&debug),
+        "--segment-settings",
+        r#"{"soft_evidence": true}"#,
     ]);
     let iou = |name: &str| iou_in(&out, name);
     assert!(iou("IoU teeth") > 0.8, "{out}");
@@ -470,13 +473,17 @@ fn segment_makes_masks_from_colour_frames() {
                 cap.join(format!("masks/{cam}/{f:06}.png")).exists(),
                 "{cam} frame {f}: no mask"
             );
-            let picture = debug.join(format!("{cam}/{f:06}.png"));
-            assert_eq!(
-                image::image_dimensions(&picture).unwrap(),
-                image::image_dimensions(cap.join(format!("images/{cam}/{f:06}.png"))).unwrap(),
-                "{}",
-                picture.display()
-            );
+            for picture in [
+                debug.join(format!("{cam}/{f:06}.png")),
+                debug.join(format!("{cam}/{f:06}-shares.png")),
+            ] {
+                assert_eq!(
+                    image::image_dimensions(&picture).unwrap(),
+                    image::image_dimensions(cap.join(format!("images/{cam}/{f:06}.png"))).unwrap(),
+                    "{}",
+                    picture.display()
+                );
+            }
         }
     }
     // The masks are the capture's now: tracked from as any, and never overwritten unasked.
@@ -485,9 +492,7 @@ fn segment_makes_masks_from_colour_frames() {
     assert!(!again.status.success());
     assert_mentions(&String::from_utf8_lossy(&again.stderr), &["--force"]);
 
-    // The bench segments a copy: its figures are segment's, and the masks given stay. It
-    // tracks from the soft evidence here, so that the shares' path (segment, the masks'
-    // reduction and pyramid, the energy) runs end to end.
+    // The bench segments a copy: its figures are segment's, and the masks given stay.
     let mask = cap.join("masks/cam1/000003.png");
     let before = std::fs::read(&mask).unwrap();
     std::fs::write(&mask, b"not a picture").unwrap();

@@ -154,7 +154,9 @@ impl<'c> Segmenter<'c> {
 
     /// Also write each picture's posteriors into `dir`/<camera>/<frame:06>.png: red teeth,
     /// green mouth interior, blue lips and skin, each as bright as it is probable, from the
-    /// colour models and the spatial prior before the graph cuts smooth them.
+    /// colour models and the spatial prior before the graph cuts smooth them; and with soft
+    /// evidence on, its shares into <frame:06>-shares.png (red the upper arch's, green the
+    /// lower's).
     pub fn with_debug(mut self, dir: std::path::PathBuf) -> Self {
         self.debug = Some(dir);
         self
@@ -249,6 +251,15 @@ impl<'c> Segmenter<'c> {
             }
         };
         counts.segmented += 1;
+        if let Some(dir) = &self.debug
+            && self.settings.soft_evidence
+        {
+            let rgb: Vec<u8> = soft.iter().flat_map(|&[u, l]| [u, l, 0]).collect();
+            write_atomic(
+                &dir.join(&cam.name).join(format!("{frame:06}-shares.png")),
+                &encode_png(&rgb, w, h, image::ExtendedColorType::Rgb8),
+            )?;
+        }
         let values = encode_values(&labels, capture.mask_mode(), capture.mouth());
         write_atomic(
             &mask_path,
