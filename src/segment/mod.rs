@@ -251,9 +251,7 @@ impl<'c> Segmenter<'c> {
             }
         };
         counts.segmented += 1;
-        if let Some(dir) = &self.debug
-            && self.settings.soft_evidence
-        {
+        if let (Some(dir), Some(soft)) = (&self.debug, &soft) {
             let rgb: Vec<u8> = soft.iter().flat_map(|&[u, l]| [u, l, 0]).collect();
             write_atomic(
                 &dir.join(&cam.name).join(format!("{frame:06}-shares.png")),
@@ -266,14 +264,11 @@ impl<'c> Segmenter<'c> {
             &encode_png(&values, w, h, image::ExtendedColorType::L8),
         )?;
         let mask = LabelMask {
-            soft: self
-                .settings
-                .soft_evidence
-                .then(|| match capture.mask_mode() {
-                    MaskMode::PerArch { .. } => soft,
-                    // One label covers both arches, and so does their evidence.
-                    MaskMode::Combined => soft.into_iter().map(|[u, l]| [u.max(l); 2]).collect(),
-                }),
+            soft: soft.map(|soft| match capture.mask_mode() {
+                MaskMode::PerArch { .. } => soft,
+                // One label covers both arches, and so does their evidence.
+                MaskMode::Combined => soft.into_iter().map(|[u, l]| [u.max(l); 2]).collect(),
+            }),
             width: w,
             height: h,
             // As the tracker reads a written mask back: the mouth only when declared.

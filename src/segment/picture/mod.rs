@@ -48,8 +48,8 @@ pub enum Outcome {
         labels: Vec<u8>,
         /// Per pixel, how much of it each arch's teeth hold (upper, lower; 0-255): the
         /// labels, but along the teeth's edges the share the pixel's colour gives them
-        /// ([`super::evidence`]).
-        soft: Vec<[u8; 2]>,
+        /// ([`super::evidence`]); only where the settings ask for soft evidence.
+        soft: Option<Vec<[u8; 2]>>,
         lesson: Option<Lesson>,
     },
     /// The models project nowhere into the picture.
@@ -164,13 +164,10 @@ pub fn segment_picture(
         reach,
     );
     let labels = picture_labels(&opened, &arches, roi, width, height);
-    let soft = picture_shares(
-        &by_colour(teeth_shares, &opened),
-        &arches,
-        roi,
-        width,
-        height,
-    );
+    let soft = settings.soft_evidence.then(|| {
+        let shares = by_colour(teeth_shares, &opened);
+        picture_shares(&shares, &arches, roi, width, height)
+    });
     let lesson = (!learning).then_some(Lesson {
         colours,
         classes,
