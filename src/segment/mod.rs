@@ -12,11 +12,13 @@ mod distance;
 mod edges;
 mod evidence;
 pub mod graph_cut;
+mod motion;
 mod opening;
 pub mod picture;
 pub mod score;
 mod seeds;
 pub mod settings;
+mod smear;
 mod smoothness;
 
 use std::path::Path;
@@ -32,7 +34,8 @@ use crate::formats::Status;
 use crate::geometry::Camera;
 use crate::io::{encode_png, write_atomic};
 use crate::track::MaskSource;
-use picture::{Lesson, Models, Outcome, segment_picture};
+use motion::Motion;
+use picture::{Expected, Lesson, Models, Outcome, segment_picture};
 pub use settings::SegmentSettings;
 
 /// The largest picture read (pixels): a GoPro's 5.3K is 15.9 Mpx.
@@ -65,6 +68,8 @@ pub struct Segmenter<'c> {
     /// Per camera, what the latest picture segmented teaches the models once its frame is
     /// tracked.
     lessons: Vec<Option<Lesson>>,
+    /// How the arches moved over the latest frames tracked `ok`.
+    motion: Motion,
 }
 
 /// The size of each camera's pictures (from its first picture in the capture's frames), and
@@ -149,6 +154,7 @@ impl<'c> Segmenter<'c> {
             debug: None,
             before: None,
             lessons: vec![None; capture.cameras().len()],
+            motion: Motion::new(capture.upper(), capture.lower()),
         }
     }
 
@@ -218,11 +224,15 @@ impl<'c> Segmenter<'c> {
         }
         let mut posteriors = Vec::new();
         let wanted = self.debug.is_some().then_some(&mut posteriors);
+        let expected = Expected {
+            prior: &prior,
+            smear: self.motion.smear(cam, frame, self.settings.shutter),
+        };
         let outcome = segment_picture(
             &rgb,
             w as usize,
             h as usize,
-            &prior,
+            expected,
             models,
             &self.settings,
             wanted,
@@ -315,8 +325,11 @@ impl MaskSource for Segmenter<'_> {
     /// The colour models follow the frame's pictures, the teeth's where the arches drawn at
     /// the tracked poses cover them ([`Lesson::follow`]); a frame tracked `low-confidence`
     /// teaches nothing (its arches may be lost, and its labels with them).
-    fn tracked(&mut self, _frame: u32, poses: &ArchPoses, status: Status) -> Result<()> {
+    fn tracked(&mut self, frame: u32, poses: &ArchPoses, status: Status) -> Result<()> {
         let started = std::time::Instant::now();
+        if status == Status::Ok {
+            self.motion.tracked(frame, poses);
+        }
         let lessons = std::mem::replace(&mut self.lessons, vec![None; self.cameras.len()]);
         if status == Status::Ok {
             let (capture, settings) = (self.capture, &self.settings);

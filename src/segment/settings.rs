@@ -26,6 +26,10 @@ pub struct SegmentSettings {
     /// Track from the soft evidence (how much of each edge pixel the teeth hold, from its
     /// colour) rather than from the labels alone; the masks written are the labels either way.
     pub soft_evidence: bool,
+    /// How long the shutter is open, as a share of the time between frames (0.5: a
+    /// 180-degree shutter; 0: no motion blur): a moving arch's edges are then read as the
+    /// ramps its motion over that time sweeps (`segment/smear.rs`).
+    pub shutter: f64,
 }
 
 impl Default for SegmentSettings {
@@ -38,6 +42,7 @@ impl Default for SegmentSettings {
             dark_ratio: 0.5,
             min_pixels: 20,
             soft_evidence: false,
+            shutter: 0.5,
         }
     }
 }
@@ -66,6 +71,12 @@ impl SegmentSettings {
         }
         if self.min_pixels == 0 || self.min_pixels > 1_000_000 {
             return bad("min_pixels", "must be 1..1000000");
+        }
+        if !(self.shutter.is_finite() && (0.0..=1.0).contains(&self.shutter)) {
+            return bad(
+                "shutter",
+                "must be 0..1 (a share of the time between frames)",
+            );
         }
         Ok(())
     }

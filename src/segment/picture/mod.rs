@@ -14,6 +14,7 @@ use super::graph_cut::GridCut;
 use super::opening::inside_the_lips;
 use super::seeds::{initial_classes, learn_interior};
 use super::settings::SegmentSettings;
+use super::smear::decide_ramps;
 use super::smoothness::{contrast, set_pairs};
 use crate::capture::masks::MOUTH_BIT;
 use crate::capture::{LOWER_BIT, UPPER_BIT};
@@ -74,8 +75,28 @@ impl Roi {
     }
 }
 
-/// Segment `rgb` (`width` x `height`, 3 bytes a pixel) given `prior`, the label bits of the
-/// models drawn at the expected poses (UPPER_BIT / LOWER_BIT per pixel, 0 elsewhere).
+/// Where tracking expects the arches in a picture.
+#[derive(Debug, Clone, Copy)]
+pub struct Expected<'a> {
+    /// The label bits of the models drawn at the expected poses (UPPER_BIT / LOWER_BIT per
+    /// pixel, 0 elsewhere).
+    pub prior: &'a [u8],
+    /// Each arch's smear (upper, lower): how far, in pixels, it moves while the shutter is
+    /// open ([`super::smear`]).
+    pub smear: [[f32; 2]; 2],
+}
+
+impl<'a> Expected<'a> {
+    /// Arches expected at `prior`, not moving.
+    pub fn still(prior: &'a [u8]) -> Expected<'a> {
+        Expected {
+            prior,
+            smear: [[0.0; 2]; 2],
+        }
+    }
+}
+
+/// Segment `rgb` (`width` x `height`, 3 bytes a pixel) given where the arches are `expected`.
 /// `models` are learned here when `None`; afterwards they follow the pictures once tracking
 /// has placed the arches in them (the outcome's [`Lesson`]). `posteriors`, when given, gets
 /// the picture of what the colour models and the prior made of each pixel before the cuts
@@ -84,11 +105,12 @@ pub fn segment_picture(
     rgb: &[u8],
     width: usize,
     height: usize,
-    prior: &[u8],
+    expected: Expected,
     models: &mut Option<Models>,
     settings: &SegmentSettings,
     posteriors: Option<&mut Vec<u8>>,
 ) -> Outcome {
+    let prior = expected.prior;
     let Some(roi) = roi(prior, width, height) else {
         return Outcome::OutOfView;
     };
@@ -151,9 +173,9 @@ pub fn segment_picture(
     }
     // The gums and tongue are labelled interior, but the lesson keeps the classes as cut:
     // they are not the interior's colours (they would teach it the lips').
-    let opened = inside_the_lips(&classes, roi.w, roi.h);
+    let mut opened = inside_the_lips(&classes, roi.w, roi.h);
     let teeth: Vec<bool> = opened.iter().map(|&c| c == 0).collect();
-    let arches = split_arches(
+    let mut arches = split_arches(
         &colours,
         &teeth,
         &projected,
@@ -162,6 +184,14 @@ pub fn segment_picture(
         beta,
         settings.smoothness as f32,
         reach,
+    );
+    decide_ramps(
+        &colours,
+        &mut opened,
+        &mut arches,
+        roi.w,
+        roi.h,
+        expected.smear,
     );
     let labels = picture_labels(&opened, &arches, roi, width, height);
     let soft = settings.soft_evidence.then(|| {

@@ -40,9 +40,15 @@ fn teeth_and_mouth_come_out_where_the_colours_are_despite_an_offset_prior() {
         ..SegmentSettings::default()
     };
     let mut models = None;
-    let Outcome::Labels { labels, .. } =
-        segment_picture(&rgb, w, h, &prior, &mut models, &settings, None)
-    else {
+    let Outcome::Labels { labels, .. } = segment_picture(
+        &rgb,
+        w,
+        h,
+        Expected::still(&prior),
+        &mut models,
+        &settings,
+        None,
+    ) else {
         panic!("the prior is in view and the picture is lit");
     };
     let iou = |bit: u8| {
@@ -60,7 +66,15 @@ fn teeth_and_mouth_come_out_where_the_colours_are_despite_an_offset_prior() {
     // The same picture in the dark is refused once the models know the light.
     let dark: Vec<u8> = rgb.iter().map(|&v| v / 10).collect();
     assert!(matches!(
-        segment_picture(&dark, w, h, &prior, &mut models, &settings, None),
+        segment_picture(
+            &dark,
+            w,
+            h,
+            Expected::still(&prior),
+            &mut models,
+            &settings,
+            None
+        ),
         Outcome::Dark
     ));
 }
@@ -121,9 +135,15 @@ fn the_mouth_interior_is_learned_once_a_picture_shows_it() {
     };
     let mut models = None;
     let (rgb, truth, prior) = mouth_picture(0);
-    let Outcome::Labels { labels, .. } =
-        segment_picture(&rgb, w, h, &prior, &mut models, &settings, None)
-    else {
+    let Outcome::Labels { labels, .. } = segment_picture(
+        &rgb,
+        w,
+        h,
+        Expected::still(&prior),
+        &mut models,
+        &settings,
+        None,
+    ) else {
         panic!("in view and lit");
     };
     assert!(models.as_ref().unwrap().mouth.is_none());
@@ -135,7 +155,7 @@ fn the_mouth_interior_is_learned_once_a_picture_shows_it() {
         &rgb,
         w,
         h,
-        &prior,
+        Expected::still(&prior),
         &mut models,
         &settings,
         Some(&mut posteriors),
