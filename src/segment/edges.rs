@@ -24,10 +24,16 @@ pub(super) fn linear_colours(colours: &[[u8; 3]]) -> Vec<[f32; 3]> {
     colours.iter().map(|c| c.map(|v| lut[v as usize])).collect()
 }
 
-/// `classes` (row-major, `w` x `h`) with each pixel that touches another class moved to the
-/// class whose local mean colour its own is nearer along the line between the two means. The
-/// means are over `inner` pixels (each class's pixels away from its edges) within [`WINDOW`];
-/// a side without any keeps the pixel as it is.
+/// `classes` (row-major, `w` x `h`; 0 teeth, 1 mouth interior) with each pixel that touches
+/// another class moved to the class whose colour its own is nearer along the line between the
+/// two sides' local mean colours. The means are over `inner` pixels (each class's pixels away
+/// from its edges) within [`WINDOW`]; a side without any keeps the pixel as it is.
+///
+/// Between teeth and the interior the cut lies half way between the two sides' *rims* (the
+/// pixel behind the edge pixel and the one beyond its neighbour, read as mixes of the means),
+/// not half way between the means: a crown darkens towards its silhouette as it turns from
+/// the light, and read against the bright middle of the crown its edge pixels hold too little
+/// of it, so the crown shrank by a part of a pixel all along its incisal edge.
 pub(super) fn refine_edges(
     colours: &[[u8; 3]],
     classes: &[u8],
@@ -41,7 +47,7 @@ pub(super) fn refine_edges(
         for x in 0..w {
             let i = y * w + x;
             let a = classes[i];
-            let Some(b) = other_side(classes, w, h, x, y) else {
+            let Some(((dx, dy), b)) = across(classes, w, h, x, y) else {
                 continue;
             };
             let (Some(ma), Some(mb)) = (
@@ -50,12 +56,101 @@ pub(super) fn refine_edges(
             ) else {
                 continue;
             };
-            if mix(colours[i], ma, mb).is_some_and(|(share, _)| share < 0.5) {
+            let Some((share, _)) = mix(colours[i], ma, mb) else {
+                continue;
+            };
+            let cut = if a.max(b) == 1 {
+                rims_midpoint(&colours, classes, w, h, (x, y), (dx, dy), (ma, mb))
+            } else {
+                None
+            };
+            if share < cut.unwrap_or(0.5) {
                 out[i] = b;
             }
         }
     }
     out
+}
+
+/// How much of the teeth's colour (as a share of the two sides' means) the teeth's rim must
+/// hold at least, and the other side's at most, for their midpoint to say where the edge is:
+/// a rim inside a blur's ramp is itself a mix, and the midpoint of a rim in the ramp and
+/// one past it lies off the ramp's middle.
+const RIM_TEETH: f32 = 0.6;
+const RIM_OTHER: f32 = 0.25;
+
+/// Where between the two sides' means `means` (as the share of the first) the edge between
+/// pixel (x, y) and its neighbour one step `d` away lies: half way between the rim behind the
+/// pixel and the rim beyond its neighbour. `None` where a rim is missing or not nearly pure,
+/// or either is no mix of the two sides (another colour, such as the tongue's). Class 0 is
+/// the teeth.
+#[allow(clippy::too_many_arguments)]
+fn rims_midpoint(
+    colours: &[[f32; 3]],
+    classes: &[u8],
+    w: usize,
+    h: usize,
+    (x, y): (usize, usize),
+    (dx, dy): (isize, isize),
+    (ma, mb): ([f32; 3], [f32; 3]),
+) -> Option<f32> {
+    let (x, y) = (x as isize, y as isize);
+    let (a, b) = (
+        classes[y as usize * w + x as usize],
+        classes[(y + dy) as usize * w + (x + dx) as usize],
+    );
+    let ra = rim(colours, classes, w, h, (x - dx, y - dy), (dx, dy), a)?;
+    let rb = rim(
+        colours,
+        classes,
+        w,
+        h,
+        (x + 2 * dx, y + 2 * dy),
+        (dx, dy),
+        b,
+    )?;
+    let (sa, oa) = mix(ra, ma, mb)?;
+    let (sb, ob) = mix(rb, ma, mb)?;
+    // The rims' shares of the teeth's colour.
+    let (teeth, other) = if a == 0 {
+        (sa, sb)
+    } else {
+        (1.0 - sb, 1.0 - sa)
+    };
+    (teeth >= RIM_TEETH && other <= RIM_OTHER && oa.max(ob) <= MIX_TOLERANCE)
+        .then_some(0.5 * (sa + sb))
+}
+
+/// The mean linear colour of class `class` at pixel (x, y) and its two neighbours along an
+/// edge that runs across `(dx, dy)`, where they hold it; `None` unless (x, y) holds it.
+#[allow(clippy::too_many_arguments)]
+pub(super) fn rim(
+    colours: &[[f32; 3]],
+    classes: &[u8],
+    w: usize,
+    h: usize,
+    (x, y): (isize, isize),
+    (dx, dy): (isize, isize),
+    class: u8,
+) -> Option<[f32; 3]> {
+    let pixel = |x: isize, y: isize| {
+        (x >= 0 && y >= 0 && x < w as isize && y < h as isize).then(|| y as usize * w + x as usize)
+    };
+    if pixel(x, y).is_none_or(|k| classes[k] != class) {
+        return None;
+    }
+    let (mut sum, mut n) = ([0f32; 3], 0.0f32);
+    for t in -1..=1 {
+        if let Some(k) = pixel(x + t * dy, y + t * dx)
+            && classes[k] == class
+        {
+            for (s, v) in sum.iter_mut().zip(colours[k]) {
+                *s += v;
+            }
+            n += 1.0;
+        }
+    }
+    Some(sum.map(|s| s / n))
 }
 
 /// How far (as a share of the distance between the two sides' colours) a pixel's colour may
@@ -144,12 +239,20 @@ pub(super) fn neighbours4(w: usize, h: usize, x: usize, y: usize) -> impl Iterat
     .flatten()
 }
 
-/// The class of the first 4-neighbour of another class than (x, y)'s.
-fn other_side(classes: &[u8], w: usize, h: usize, x: usize, y: usize) -> Option<u8> {
+/// The first 4-neighbour of (x, y) of another class than its own: the step towards it, and
+/// its class.
+fn across(classes: &[u8], w: usize, h: usize, x: usize, y: usize) -> Option<((isize, isize), u8)> {
     let here = classes[y * w + x];
-    neighbours4(w, h, x, y)
-        .map(|j| classes[j])
-        .find(|&c| c != here)
+    [(-1, 0), (1, 0), (0, -1), (0, 1)]
+        .into_iter()
+        .find_map(|(dx, dy): (isize, isize)| {
+            let (nx, ny) = (x as isize + dx, y as isize + dy);
+            if nx < 0 || ny < 0 || nx >= w as isize || ny >= h as isize {
+                return None;
+            }
+            let c = classes[ny as usize * w + nx as usize];
+            (c != here).then_some(((dx, dy), c))
+        })
 }
 
 /// The mean linear colour of the `inner` pixels of class `k` within [`WINDOW`] of (x, y).
@@ -188,38 +291,51 @@ mod tests {
         encoded(l as f64).round() as u8
     }
 
-    /// Rows 0-5 pale, rows 8- dark, rows 6 and 7 covered by the pale side `t6` and `t7` (the
-    /// light mixed, then encoded as a camera writes it); the cut's answer has both mixed rows
-    /// dark. What the refinement makes of rows 6 and 7.
-    fn refined(t6: f32, t7: f32) -> (u8, u8) {
-        let (w, h) = (12, 12);
+    /// Pale linear light `t` mixed with dark, encoded as a camera writes it.
+    fn pale_over_dark(t: f32) -> [u8; 3] {
         let pale = [230u8, 220, 200].map(linear);
         let dark = [60u8, 20, 25].map(linear);
-        let mix = |t: f32| -> [u8; 3] {
-            std::array::from_fn(|k| byte(t * pale[k] + (1.0 - t) * dark[k]))
-        };
-        let colours: Vec<[u8; 3]> = (0..w * h)
-            .map(|i| match i / w {
-                0..6 => mix(1.0),
-                6 => mix(t6),
-                7 => mix(t7),
-                _ => mix(0.0),
-            })
-            .collect();
-        let classes: Vec<u8> = (0..w * h).map(|i| if i / w < 6 { 0 } else { 1 }).collect();
+        std::array::from_fn(|k| byte(t * pale[k] + (1.0 - t) * dark[k]))
+    }
+
+    /// A 12 x 12 picture whose row `y` has the colour `row(y)`, teeth above row `teeth_rows`
+    /// and interior below, each side's inner pixels two rows or more from that edge: the
+    /// class of each row after the refinement (every row comes out uniform).
+    fn refined_rows(row: impl Fn(usize) -> [u8; 3], teeth_rows: usize) -> Vec<u8> {
+        let (w, h) = (12, 12);
+        let colours: Vec<[u8; 3]> = (0..w * h).map(|i| row(i / w)).collect();
+        let classes: Vec<u8> = (0..w * h).map(|i| u8::from(i / w >= teeth_rows)).collect();
         let inner: Vec<u8> = (0..w * h)
             .map(|i| match i / w {
-                0..5 => 0,
-                9.. => 1,
+                y if y + 1 < teeth_rows => 0,
+                y if y >= teeth_rows + 2 => 1,
                 _ => 3,
             })
             .collect();
         let out = refine_edges(&colours, &classes, &inner, w, h);
-        for x in 0..w {
-            assert_eq!(out[5 * w + x], 0);
-            assert_eq!((out[6 * w + x], out[7 * w + x]), (out[6 * w], out[7 * w]));
-        }
-        (out[6 * w], out[7 * w])
+        (0..h)
+            .map(|y| {
+                assert!((0..w).all(|x| out[y * w + x] == out[y * w]), "row {y}");
+                out[y * w]
+            })
+            .collect()
+    }
+
+    /// Rows 0-5 pale, rows 8- dark, rows 6 and 7 covered by the pale side `t6` and `t7`
+    /// (the light mixed, then encoded as a camera writes it); the cut's answer has both mixed
+    /// rows dark. What the refinement makes of rows 6 and 7.
+    fn refined(t6: f32, t7: f32) -> (u8, u8) {
+        let rows = refined_rows(
+            |y| match y {
+                0..6 => pale_over_dark(1.0),
+                6 => pale_over_dark(t6),
+                7 => pale_over_dark(t7),
+                _ => pale_over_dark(0.0),
+            },
+            6,
+        );
+        assert_eq!(rows[5], 0);
+        (rows[6], rows[7])
     }
 
     /// A blurred edge: one row 70 % pale goes back to the pale side, one 30 % pale stays.
@@ -235,6 +351,29 @@ mod tests {
         let mixed = byte(0.4 * linear(230) + 0.6 * linear(60));
         assert!(mixed as f32 > 0.5 * (230.0 + 60.0), "{mixed}");
         assert_eq!(refined(0.6, 0.4), (0, 1));
+    }
+
+    /// A crown darkening towards its edge (row 5 at 0.8 of its light) over the dark interior,
+    /// its edge pixel (row 6) 60 % covered: against the crown's bright middle it holds 0.48
+    /// of the crown and went to the interior; against the rims either side (0.8 and 0) it
+    /// holds more than half, and stays teeth. A pixel 30 % covered still goes.
+    #[test]
+    fn an_edge_is_read_against_the_rims_either_side_of_it() {
+        let decided = |cover: f32| {
+            let rows = refined_rows(
+                |y| match y {
+                    0..5 => pale_over_dark(1.0),
+                    5 => pale_over_dark(0.8),
+                    6 => pale_over_dark(0.8 * cover),
+                    _ => pale_over_dark(0.0),
+                },
+                7,
+            );
+            assert_eq!((rows[5], rows[7]), (0, 1));
+            rows[6]
+        };
+        assert_eq!(decided(0.6), 0);
+        assert_eq!(decided(0.3), 1);
     }
 
     /// Teeth over the interior with one row between that the cut called lip: a mix of the two

@@ -5,7 +5,7 @@
 //! ([`crate::capture::LabelMask::soft`]), so a pixel 60 % teeth moves the edge it sees by a
 //! fraction of a pixel, where its label moved it by a whole one.
 
-use super::edges::{linear_colours, local_mean, mix};
+use super::edges::{linear_colours, local_mean, mix, rim};
 
 /// `classes` (row-major, `w` x `h`: 0 teeth, 1 mouth interior, 2 lips and skin): per pixel,
 /// the share of it the teeth hold, 0-255. 255 on teeth and 0 elsewhere, but at an edge
@@ -34,22 +34,6 @@ pub(super) fn teeth_shares(
     let (wi, hi) = (w as isize, h as isize);
     let pixel =
         |x: isize, y: isize| (x >= 0 && y >= 0 && x < wi && y < hi).then(|| (y * wi + x) as usize);
-    // The mean colour of class `class` at pixel (x, y) and its two neighbours along the
-    // edge (across `(dx, dy)`), where they hold it.
-    let rim = |x: isize, y: isize, (dx, dy): (isize, isize), class: u8| {
-        let (mut sum, mut n) = ([0f32; 3], 0.0f32);
-        for t in -1..=1 {
-            if let Some(k) = pixel(x + t * dy, y + t * dx)
-                && classes[k] == class
-            {
-                for (s, v) in sum.iter_mut().zip(lin[k]) {
-                    *s += v;
-                }
-                n += 1.0;
-            }
-        }
-        (n > 0.0 && pixel(x, y).is_some_and(|k| classes[k] == class)).then(|| sum.map(|s| s / n))
-    };
     for y in 0..hi {
         for x in 0..wi {
             let i = (y * wi + x) as usize;
@@ -73,7 +57,7 @@ pub(super) fn teeth_shares(
                 (beyond, behind, classes[i])
             };
             let side = |(rx, ry): (isize, isize), class: u8| {
-                rim(rx, ry, d, class)
+                rim(&lin, classes, w, h, (rx, ry), d, class)
                     .or_else(|| local_mean(&lin, inner, w, h, x as usize, y as usize, class))
             };
             let (Some(t), Some(r)) = (side(teeth_at, 0), side(rest_at, rest)) else {
