@@ -11,7 +11,7 @@ use crate::mesh::Mesh;
 const SAMPLES: usize = 256;
 
 /// The arches' poses at the latest two frames tracked.
-#[derive(Debug, Clone, Default)]
+#[derive(Debug, Clone)]
 pub(super) struct Motion {
     /// Points of each arch (upper, lower) in its own frame: its boundary of interest's
     /// vertices (the crowns the cameras see), or all of them where it has none.

@@ -23,7 +23,7 @@ const INTERIOR: u8 = 1;
 
 /// The shortest smear (pixels) read as a ramp: below it the edges' own pass
 /// ([`super::edges::refine_edges`]) decides the pixels.
-pub(super) const MIN_SMEAR: f32 = 1.5;
+const MIN_SMEAR: f32 = 1.5;
 
 /// The least share of the crown's colour that an arch's edges must hold, in the median, a
 /// quarter of the smear past where they are half way, for the picture to be read as smeared:
