@@ -24,10 +24,11 @@ pub(super) fn linear_colours(colours: &[[u8; 3]]) -> Vec<[f32; 3]> {
     colours.iter().map(|c| c.map(|v| lut[v as usize])).collect()
 }
 
-/// `classes` (row-major, `w` x `h`; 0 teeth, 1 mouth interior) with each pixel that touches
-/// another class moved to the class whose colour its own is nearer along the line between the
-/// two sides' local mean colours. The means are over `inner` pixels (each class's pixels away
-/// from its edges) within [`WINDOW`]; a side without any keeps the pixel as it is.
+/// `classes` (row-major, `w` x `h`; 0 teeth, 1 mouth interior, 2 lips and skin) with each
+/// pixel that touches another class moved to the class whose colour its own is nearer along
+/// the line between the two sides' local mean colours. The means are over `inner` pixels
+/// (each class's pixels away from its edges) within [`WINDOW`]; a side without any keeps the
+/// pixel as it is.
 ///
 /// Between teeth and the interior the cut lies half way between the two sides' *rims* (the
 /// pixel behind the edge pixel and the one beyond its neighbour, read as mixes of the means),
@@ -84,7 +85,6 @@ const RIM_OTHER: f32 = 0.25;
 /// pixel and the rim beyond its neighbour. `None` where a rim is missing or not nearly pure,
 /// or either is no mix of the two sides (another colour, such as the tongue's). Class 0 is
 /// the teeth.
-#[allow(clippy::too_many_arguments)]
 fn rims_midpoint(
     colours: &[[f32; 3]],
     classes: &[u8],
@@ -123,7 +123,6 @@ fn rims_midpoint(
 
 /// The mean linear colour of class `class` at pixel (x, y) and its two neighbours along an
 /// edge that runs across `(dx, dy)`, where they hold it; `None` unless (x, y) holds it.
-#[allow(clippy::too_many_arguments)]
 pub(super) fn rim(
     colours: &[[f32; 3]],
     classes: &[u8],
@@ -353,18 +352,20 @@ mod tests {
         assert_eq!(refined(0.6, 0.4), (0, 1));
     }
 
-    /// A crown darkening towards its edge (row 5 at 0.8 of its light) over the dark interior,
-    /// its edge pixel (row 6) 60 % covered: against the crown's bright middle it holds 0.48
-    /// of the crown and went to the interior; against the rims either side (0.8 and 0) it
-    /// holds more than half, and stays teeth. A pixel 30 % covered still goes.
+    /// A crown darkening towards its edge (rows 4 and 5 at 0.8 and 0.6 of its light) over the
+    /// dark interior, its edge pixel (row 6) 60 % covered: against the crown's mean nearby
+    /// (0.8) it holds 0.45 of the crown and went to the interior; against the rims either side
+    /// (0.75 and 0) it holds more than their midpoint, and stays teeth. A pixel 30 % covered
+    /// still goes.
     #[test]
     fn an_edge_is_read_against_the_rims_either_side_of_it() {
         let decided = |cover: f32| {
             let rows = refined_rows(
                 |y| match y {
-                    0..5 => pale_over_dark(1.0),
-                    5 => pale_over_dark(0.8),
-                    6 => pale_over_dark(0.8 * cover),
+                    0..4 => pale_over_dark(1.0),
+                    4 => pale_over_dark(0.8),
+                    5 => pale_over_dark(0.6),
+                    6 => pale_over_dark(0.6 * cover),
                     _ => pale_over_dark(0.0),
                 },
                 7,
