@@ -6,6 +6,17 @@ fn textured(c: [u8; 3], x: usize, y: usize) -> [u8; 3] {
     c.map(|v| v.saturating_add(((x * 7 + y * 13) % 9) as u8))
 }
 
+/// One picture segmented with the arches expected still at `prior`, its posteriors unwritten.
+fn segment_still(
+    rgb: &[u8],
+    (w, h): (usize, usize),
+    prior: &[u8],
+    models: &mut Option<Models>,
+    settings: &SegmentSettings,
+) -> Outcome {
+    segment_picture(rgb, w, h, Expected::still(prior), models, settings, None)
+}
+
 /// A picture of a white band (teeth) over a dark gap, inside red lips, on skin; the
 /// prior is the band shifted by two pixels and a little too wide, as a pose a frame
 /// old would draw it.
@@ -40,15 +51,9 @@ fn teeth_and_mouth_come_out_where_the_colours_are_despite_an_offset_prior() {
         ..SegmentSettings::default()
     };
     let mut models = None;
-    let Outcome::Labels { labels, .. } = segment_picture(
-        &rgb,
-        w,
-        h,
-        Expected::still(&prior),
-        &mut models,
-        &settings,
-        None,
-    ) else {
+    let Outcome::Labels { labels, .. } =
+        segment_still(&rgb, (w, h), &prior, &mut models, &settings)
+    else {
         panic!("the prior is in view and the picture is lit");
     };
     let iou = |bit: u8| {
@@ -66,15 +71,7 @@ fn teeth_and_mouth_come_out_where_the_colours_are_despite_an_offset_prior() {
     // The same picture in the dark is refused once the models know the light.
     let dark: Vec<u8> = rgb.iter().map(|&v| v / 10).collect();
     assert!(matches!(
-        segment_picture(
-            &dark,
-            w,
-            h,
-            Expected::still(&prior),
-            &mut models,
-            &settings,
-            None
-        ),
+        segment_still(&dark, (w, h), &prior, &mut models, &settings),
         Outcome::Dark
     ));
 }
@@ -135,15 +132,9 @@ fn the_mouth_interior_is_learned_once_a_picture_shows_it() {
     };
     let mut models = None;
     let (rgb, truth, prior) = mouth_picture(0);
-    let Outcome::Labels { labels, .. } = segment_picture(
-        &rgb,
-        w,
-        h,
-        Expected::still(&prior),
-        &mut models,
-        &settings,
-        None,
-    ) else {
+    let Outcome::Labels { labels, .. } =
+        segment_still(&rgb, (w, h), &prior, &mut models, &settings)
+    else {
         panic!("in view and lit");
     };
     assert!(models.as_ref().unwrap().mouth.is_none());
