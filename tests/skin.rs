@@ -406,6 +406,7 @@ fn fill_error(misled: Option<u32>) -> (f64, Vec<u32>) {
                     tracked: None,
                     hand_set: false,
                     teeth_hidden: false,
+                    recovered: false,
                     edge_offsets: None,
                 }
             })

@@ -602,6 +602,52 @@ fn frames_whose_masks_hide_the_teeth_are_flagged_and_tracking_goes_on() {
     );
 }
 
+/// Frame 2's masks claim teeth where there are none (a block of upper arch in a corner of each
+/// camera): no pose explains them, and the frame is tracked `low-confidence`. Frame 3, clean
+/// again, is tracked `ok` from a start frame 2 could not vouch for: it is written
+/// `low-confidence` with `recovered`, tracking goes on from it as from an `ok` frame, and a
+/// run resumed after it writes what one run does.
+#[test]
+fn the_first_frame_found_again_after_a_loss_is_flagged_and_tracking_goes_on() {
+    let t = tempfile::tempdir().unwrap();
+    let cap = t.path().join("c");
+    copy_dir(capture48(), &cap);
+    let spec: serde_json::Value =
+        serde_json::from_str(&std::fs::read_to_string(cap.join("capture.json")).unwrap()).unwrap();
+    let upper = spec["masks"]["upper"].as_u64().unwrap() as u8;
+    for camera in ["cam0", "cam1", "cam2"] {
+        let path = cap.join("masks").join(camera).join("000002.png");
+        let mut mask = image::open(&path).unwrap().into_luma8();
+        let (w, h) = mask.dimensions();
+        for (x, y, p) in mask.enumerate_pixels_mut() {
+            if x < w / 3 && y < h / 3 {
+                p.0[0] = upper;
+            }
+        }
+        mask.save(&path).unwrap();
+    }
+    let out = t.path().join("tracks.json");
+    track(&cap, &out, &["--frames", "0..5"]);
+    let tj: TracksJson = serde_json::from_str(&std::fs::read_to_string(&out).unwrap()).unwrap();
+    let status: Vec<(&str, bool)> = tj
+        .frames
+        .iter()
+        .map(|f| (f.status.unwrap().as_str(), f.recovered))
+        .collect();
+    let (ok, low) = (("ok", false), ("low-confidence", false));
+    assert_eq!(status, [ok, ok, low, ("low-confidence", true), ok]);
+    let s = score(&cap, &out);
+    let jaw_error_at = |i: usize| s["per_frame"][i][1][2].as_f64().unwrap();
+    assert!(jaw_error_at(4) < 0.2, "found again: {}", jaw_error_at(4));
+    let resumed = t.path().join("resumed.json");
+    track(&cap, &resumed, &["--frames", "0..4"]);
+    track(&cap, &resumed, &["--frames", "0..5", "--resume"]);
+    assert!(
+        std::fs::read(&out).unwrap() == std::fs::read(&resumed).unwrap(),
+        "resumed after the recovered frame, tracks.json differs from one run's"
+    );
+}
+
 /// The capture with its meshes written in another model frame (z up, -y anterior: a common
 /// CAD convention) and its poses changed to match: the same motion, other files.
 fn in_z_up_frame(src: &Path, dst: &Path) {

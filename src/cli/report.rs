@@ -236,13 +236,14 @@ pub fn track_summary(output: &Path, s: &Summary) {
 
 pub fn score(r: &ScoreReport) {
     println!(
-        "against {}, {} frames ({} ok, {} low-confidence ({} with the teeth hidden), {} no-data): \
-         median / 95th percentile / max",
+        "against {}, {} frames ({} ok, {} low-confidence ({} with the teeth hidden, {} found again \
+         after a loss), {} no-data): median / 95th percentile / max",
         r.reference,
         r.frames,
         r.frames_ok,
         r.frames_low_confidence,
         r.frames_teeth_hidden,
+        r.frames_recovered,
         r.frames_no_data
     );
     let line = |name: &str, what: &str, s: &Stats| {

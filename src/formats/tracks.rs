@@ -62,6 +62,13 @@ pub struct FrameRecordJson {
     /// frame's; tracking went on from it as from an `ok` one.
     #[serde(default, skip_serializing_if = "std::ops::Not::not")]
     pub teeth_hidden: bool,
+    /// jawtrack's addition: the frame is `low-confidence` because it is the first tracked `ok`
+    /// after frames tracked `low-confidence`: it was found again from a start those frames could not
+    /// vouch for, and (where the masks are made around where tracking expects the arches) from
+    /// masks made around that start, so only its own masks say it is right. Tracking went on
+    /// from it as from an `ok` one.
+    #[serde(default, skip_serializing_if = "std::ops::Not::not")]
+    pub recovered: bool,
     /// jawtrack's addition: each camera's offset of its masks' edges as estimated after this
     /// frame, and what the frames so far know of them (`track::edge_offsets`).
     #[serde(default, skip_serializing_if = "Option::is_none")]
@@ -134,9 +141,9 @@ impl FrameRecordJson {
     }
 
     /// The status tracking went on from: `ok` for a frame flagged only because its teeth were
-    /// hidden.
+    /// hidden or because it was found again after a loss.
     pub fn tracked_status(&self) -> Status {
-        match self.teeth_hidden {
+        match self.teeth_hidden || self.recovered {
             true => Status::Ok,
             false => self.status(),
         }

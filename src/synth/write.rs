@@ -240,6 +240,7 @@ fn write_ground_truth(dir: &Path, frames: &[FilmedFrame]) -> Result<()> {
             tracked: None,
             hand_set: false,
             teeth_hidden: false,
+            recovered: false,
             edge_offsets: None,
         })
         .collect();

@@ -14,7 +14,7 @@ use std::path::{Path, PathBuf};
 use std::time::{Duration, Instant};
 
 use super::edge_offsets::EdgeOffsets;
-use super::state::FrameResult;
+use super::state::{Caution, FrameResult};
 use super::window::{Estimate, Window, settled};
 use crate::arch::ArchPoses;
 use crate::energy::smooth::Matrix12;
@@ -129,7 +129,8 @@ pub fn record(r: &FrameResult) -> FrameRecordJson {
             upper: Some(u.area_error()),
         }),
         status: Some(r.written_status()),
-        teeth_hidden: r.teeth_hidden,
+        teeth_hidden: r.caution == Some(Caution::TeethHidden),
+        recovered: r.caution == Some(Caution::Recovered),
         jaw_source: None,
         tracked: r.information.map(|info| TrackedJson {
             upper: PoseJson::from(&r.poses.upper),

@@ -25,6 +25,8 @@ pub struct ScoreReport {
     pub frames_low_confidence: usize,
     /// Of the `low-confidence` frames, those flagged because the masks hid the teeth.
     pub frames_teeth_hidden: usize,
+    /// Of the `low-confidence` frames, those flagged as the first found again after a loss.
+    pub frames_recovered: usize,
     pub frames_no_data: usize,
     pub upper: PoseErrors,
     pub lower: PoseErrors,
@@ -113,7 +115,7 @@ pub fn score_against(
     let mut area: [Vec<f64>; 2] = Default::default();
     let mut per_frame = Vec::new();
     let mut flagged = Vec::new();
-    let (mut ok, mut low, mut none, mut hidden) = (0, 0, 0, 0);
+    let (mut ok, mut low, mut none, mut hidden, mut recovered) = (0, 0, 0, 0, 0);
     for (rec, poses) in tracked {
         let Some(gt) = reference(rec.frame) else {
             continue;
@@ -124,6 +126,7 @@ pub fn score_against(
             Status::Ok => ok += 1,
         }
         hidden += rec.teeth_hidden as usize;
+        recovered += rec.recovered as usize;
         let mut frame_err = [0.0; 3];
         let pairs = [
             (poses.upper, gt.upper, &metrics[0]),
@@ -159,6 +162,7 @@ pub fn score_against(
         frames_ok: ok,
         frames_low_confidence: low,
         frames_teeth_hidden: hidden,
+        frames_recovered: recovered,
         frames_no_data: none,
         upper: pose_errors(&errors[0]),
         lower: pose_errors(&errors[1]),

@@ -26,9 +26,8 @@ pub struct FrameResult {
     pub energies: Option<[Energy; 2]>,
     /// The energy's verdict, which tracking goes on from.
     pub status: Status,
-    /// The masks hide an arch's incisal band (`hidden_teeth_share`): written
-    /// `low-confidence` whatever `status` says.
-    pub teeth_hidden: bool,
+    /// Why a frame the energy found `ok` is written `low-confidence` all the same.
+    pub caution: Option<Caution>,
     pub evaluations: usize,
     /// Gauss-Newton steps (each a Jacobian of every silhouette sample; 0 for the paper's
     /// search).
@@ -42,12 +41,26 @@ pub struct FrameResult {
     pub seconds: f64,
 }
 
+/// Why a frame tracked `ok` is flagged `low-confidence`: tracking goes on from it as from an
+/// `ok` frame, and tracks.json says which (`teeth_hidden`, `recovered`), so that a resumed run
+/// goes on as the first did.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub enum Caution {
+    /// The masks hide an arch's incisal band (`hidden_teeth_share`): the pose is what the
+    /// frames around it make of too little evidence.
+    TeethHidden,
+    /// The first frame tracked `ok` after frames tracked `low-confidence`: found again from a
+    /// start those frames could not vouch for, it has only its own masks to say it is right,
+    /// and they may have been made around that start.
+    Recovered,
+}
+
 impl FrameResult {
-    /// The status tracks.json gives the frame: `low-confidence` where the teeth were hidden.
+    /// The status tracks.json gives the frame: `low-confidence` where a caution applies.
     pub fn written_status(&self) -> Status {
-        match self.teeth_hidden {
-            true => Status::LowConfidence,
-            false => self.status,
+        match self.caution {
+            Some(_) => Status::LowConfidence,
+            None => self.status,
         }
     }
 }
@@ -65,6 +78,9 @@ pub struct TrackState {
     /// The estimate of a low-confidence frame since the last good one: the next frame also
     /// tries to start from it (the motion may have gone on).
     pub since_good: Option<ArchPoses>,
+    /// A frame since the last good one was tracked `low-confidence` (not merely unseen): the
+    /// next good one is found again after a loss ([`Caution::Recovered`]).
+    pub lost: bool,
     pub recent_area_errors: VecDeque<f64>,
     /// Each camera's offset of its masks' edges as the frames so far estimate it
     /// (`super::edge_offsets`); `None` where they are not estimated.
@@ -119,6 +135,7 @@ impl TrackState {
             last: start,
             before: None,
             since_good: None,
+            lost: false,
             recent_area_errors: VecDeque::new(),
             edge_offsets: None,
             manifold_fit: ManifoldFit::default(),
@@ -165,6 +182,7 @@ impl TrackState {
                 // The velocity needs two good frames in a row.
                 self.before = self.since_good.is_none().then_some(self.last);
                 self.since_good = None;
+                self.lost = false;
                 self.last = poses;
                 self.recent_area_errors.push_back(worst_area_error);
                 if self.recent_area_errors.len() > window {
@@ -172,7 +190,10 @@ impl TrackState {
                 }
             }
             // The last good pose stays a start; so does this estimate.
-            Status::LowConfidence => self.since_good = Some(poses),
+            Status::LowConfidence => {
+                self.since_good = Some(poses);
+                self.lost = true;
+            }
             Status::NoData => self.no_data(),
         }
     }
@@ -295,8 +316,18 @@ mod tests {
             let off_mm = manifold.distance_mm(&as_written(&p).jaw());
             live.manifold_fit.note(status, off_mm, 1.0);
             let area = (status != Status::NoData).then_some([area, area / 3.0]);
+            // The first frame found again after the loss is written flagged, as the tracker
+            // writes it; tracking went on from it as from an `ok` one.
+            let recovered = i == 4;
+            let written = match recovered {
+                true => Status::LowConfidence,
+                false => status,
+            };
             let mut line: serde_json::Value =
-                serde_json::from_str(&record(i as u32, status, &p, area)).unwrap();
+                serde_json::from_str(&record(i as u32, written, &p, area)).unwrap();
+            if recovered {
+                line["recovered"] = true.into();
+            }
             // The cameras' edge offsets as they stood after the frame, from the fifth frame on.
             if i >= 4 {
                 let mut offsets = EdgeOffsets::unknown(2);
@@ -313,7 +344,7 @@ mod tests {
         // Five frames tracked ok, each one's distance kept as the live run had it.
         assert_eq!(replayed.manifold_fit.recent_mm.len(), 5);
         assert_eq!(replayed.recent_area_errors.len(), 3);
-        assert!(replayed.before.is_some() && replayed.since_good.is_none());
+        assert!(replayed.before.is_some() && replayed.since_good.is_none() && !replayed.lost);
         assert!(replayed.edge_offsets.is_some());
     }
 

@@ -21,7 +21,7 @@ use super::penalties::Penalties;
 use super::prior::{JawPrior, centre};
 use super::search::{ArchSearch, Found, RADIUS_MM, Solver, search};
 use super::settings::TrackSettings;
-use super::state::{FrameResult, TrackState, as_written};
+use super::state::{Caution, FrameResult, TrackState, as_written};
 use crate::arch::{Arch, ArchPoses};
 use crate::capture::{Capture, FrameMasks, MaskMode};
 use crate::energy::contour::ContourEdges;
@@ -332,7 +332,7 @@ fn track_over(
             poses: state.last,
             energies: None,
             status: Status::NoData,
-            teeth_hidden: false,
+            caution: None,
             evaluations: 0,
             steps: 0,
             information: None,
@@ -500,11 +500,17 @@ fn finish(
     let worst = worst_area_error(&energies);
     let status = state.confidence(settings, worst);
     let poses_written = as_written(&poses);
-    let teeth_hidden = status == Status::Ok
-        && energies.iter().any(|e| {
-            e.boi_shown()
-                .is_some_and(|s| s < settings.hidden_teeth_share)
-        });
+    let teeth_hidden = energies.iter().any(|e| {
+        e.boi_shown()
+            .is_some_and(|s| s < settings.hidden_teeth_share)
+    });
+    // Before the state moves on: it still says whether tracking was lost since the last good
+    // frame.
+    let caution = match (status, teeth_hidden, state.lost) {
+        (Status::Ok, true, _) => Some(Caution::TeethHidden),
+        (Status::Ok, false, true) => Some(Caution::Recovered),
+        _ => None,
+    };
     state.advance(status, poses_written, worst, settings.confidence_window);
     if let Some(m) = &run.penalties.manifold {
         let off_mm = m.distance_mm(&poses_written.jaw());
@@ -515,7 +521,7 @@ fn finish(
         poses,
         energies: Some(energies),
         status,
-        teeth_hidden,
+        caution,
         evaluations,
         steps: 0,
         information: None,

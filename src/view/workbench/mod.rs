@@ -426,6 +426,7 @@ fn hand_set_record(frame: u32, poses: &ArchPoses, e: &[Energy; 2]) -> FrameRecor
         tracked: None,
         hand_set: true,
         teeth_hidden: false,
+        recovered: false,
         edge_offsets: None,
     }
 }
