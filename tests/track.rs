@@ -553,6 +553,18 @@ fn frames_without_masks_keep_the_last_pose_and_tracking_recovers() {
     );
 }
 
+/// A run of `capture` over frames `first` (`A..B`), resumed over 0..5, writes the bytes of
+/// `one_run` (one run over 0..5); `after` names what the first run stopped after.
+fn resumes_the_same(capture: &Path, one_run: &Path, first: &str, after: &str) {
+    let resumed = one_run.with_file_name("resumed.json");
+    track(capture, &resumed, &["--frames", first]);
+    track(capture, &resumed, &["--frames", "0..5", "--resume"]);
+    assert!(
+        std::fs::read(one_run).unwrap() == std::fs::read(&resumed).unwrap(),
+        "resumed after {after}, tracks.json differs from one run's"
+    );
+}
+
 /// Lips closed over the teeth in frame 2 (its masks show none): the frame is written
 /// `low-confidence` with `teeth_hidden`, tracking goes on from it as from an `ok` frame (the
 /// same poses as with the flag off), and a run resumed after it writes what one run does.
@@ -593,13 +605,7 @@ fn frames_whose_masks_hide_the_teeth_are_flagged_and_tracking_goes_on() {
     for (x, y) in a.frames.iter().zip(&b.frames) {
         assert_eq!((x.upper, x.lower), (y.upper, y.lower), "frame {}", x.frame);
     }
-    let resumed = t.path().join("resumed.json");
-    track(&cap, &resumed, &["--frames", "0..3"]);
-    track(&cap, &resumed, &["--frames", "0..5", "--resume"]);
-    assert!(
-        std::fs::read(&flagged).unwrap() == std::fs::read(&resumed).unwrap(),
-        "resumed after the hidden frame, tracks.json differs from one run's"
-    );
+    resumes_the_same(&cap, &flagged, "0..3", "the hidden frame");
 }
 
 /// Frame 2's masks claim teeth where there are none (a block of upper arch in a corner of each
@@ -639,13 +645,7 @@ fn the_first_frame_found_again_after_a_loss_is_flagged_and_tracking_goes_on() {
     let s = score(&cap, &out);
     let jaw_error_at = |i: usize| s["per_frame"][i][1][2].as_f64().unwrap();
     assert!(jaw_error_at(4) < 0.2, "found again: {}", jaw_error_at(4));
-    let resumed = t.path().join("resumed.json");
-    track(&cap, &resumed, &["--frames", "0..4"]);
-    track(&cap, &resumed, &["--frames", "0..5", "--resume"]);
-    assert!(
-        std::fs::read(&out).unwrap() == std::fs::read(&resumed).unwrap(),
-        "resumed after the recovered frame, tracks.json differs from one run's"
-    );
+    resumes_the_same(&cap, &out, "0..4", "the recovered frame");
 }
 
 /// The capture with its meshes written in another model frame (z up, -y anterior: a common
