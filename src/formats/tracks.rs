@@ -63,10 +63,10 @@ pub struct FrameRecordJson {
     #[serde(default, skip_serializing_if = "std::ops::Not::not")]
     pub teeth_hidden: bool,
     /// jawtrack's addition: the frame is `low-confidence` because it is the first tracked `ok`
-    /// after frames tracked `low-confidence`: it was found again from a start those frames could not
-    /// vouch for, and (where the masks are made around where tracking expects the arches) from
-    /// masks made around that start, so only its own masks say it is right. Tracking went on
-    /// from it as from an `ok` one.
+    /// after frames tracked `low-confidence`: it was found again from a start those frames
+    /// could not vouch for, and (where the masks are made around where tracking expects the
+    /// arches) from masks made around that start, so only its own masks say it is right.
+    /// Tracking went on from it as from an `ok` one.
     #[serde(default, skip_serializing_if = "std::ops::Not::not")]
     pub recovered: bool,
     /// jawtrack's addition: each camera's offset of its masks' edges as estimated after this
