@@ -18,6 +18,7 @@ pub mod picture;
 pub mod score;
 mod seeds;
 pub mod settings;
+mod shaded_crowns;
 mod smear;
 mod smoothness;
 

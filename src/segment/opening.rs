@@ -75,11 +75,11 @@ pub(super) fn inside_the_lips(classes: &[u8], w: usize, h: usize) -> Vec<u8> {
     out
 }
 
-/// Per row, the columns (inclusive) that the convex hull of the opening's largest piece
-/// (teeth and interior, 4-connected) covers; `None` when that piece shows no interior (a
-/// closed mouth's teeth enclose no lip).
+/// Per row, the columns (inclusive) that the convex hull of the opening's pieces
+/// ([`opening_pieces`]) covers; `None` when the largest shows no interior (a closed mouth's
+/// teeth enclose no lip).
 fn opening_hull(classes: &[u8], w: usize, h: usize) -> Option<Vec<Option<(usize, usize)>>> {
-    let piece = largest_piece(classes, w, h)?;
+    let piece = opening_pieces(classes, w, h)?;
     // Each row's ends are enough for the hull.
     let mut ends: Vec<(i64, i64)> = Vec::new();
     for y in 0..h {
@@ -116,18 +116,27 @@ fn opening_hull(classes: &[u8], w: usize, h: usize) -> Option<Vec<Option<(usize,
     Some(spans)
 }
 
-/// The largest 4-connected piece of teeth and interior, if it holds any interior.
-fn largest_piece(classes: &[u8], w: usize, h: usize) -> Option<Vec<bool>> {
+/// The smallest share of the largest piece's pixels that another piece of teeth or interior
+/// needs to be part of the opening: a whole arch's crowns, cut off from the interior by the
+/// tongue behind them or by the gums, are a sizeable share; a highlight on a lip is not.
+const PIECE_SHARE: usize = 8;
+
+/// The opening's pieces: the largest 4-connected piece of teeth and interior, if it holds any
+/// interior, and every other piece at least 1/[`PIECE_SHARE`] of its size. The tongue behind
+/// the lower incisors, or the gums, often cut one arch's crowns off from the interior; the
+/// band between them lies inside the lips all the same.
+fn opening_pieces(classes: &[u8], w: usize, h: usize) -> Option<Vec<bool>> {
     let open = |i: usize| classes[i] < 2;
     let mut piece_of = vec![u32::MAX; classes.len()];
-    let (mut best, mut best_size, mut best_interior) = (u32::MAX, 0, false);
+    // Each piece's size and whether it holds interior.
+    let mut pieces: Vec<(usize, bool)> = Vec::new();
     let mut stack = Vec::new();
-    let mut count = 0u32;
     for start in 0..classes.len() {
         if !open(start) || piece_of[start] != u32::MAX {
             continue;
         }
-        piece_of[start] = count;
+        let id = pieces.len() as u32;
+        piece_of[start] = id;
         stack.push(start);
         let (mut size, mut interior) = (0usize, false);
         while let Some(i) = stack.pop() {
@@ -135,17 +144,24 @@ fn largest_piece(classes: &[u8], w: usize, h: usize) -> Option<Vec<bool>> {
             interior |= classes[i] == 1;
             for j in neighbours4(w, h, i % w, i / w) {
                 if open(j) && piece_of[j] == u32::MAX {
-                    piece_of[j] = count;
+                    piece_of[j] = id;
                     stack.push(j);
                 }
             }
         }
-        if size > best_size {
-            (best, best_size, best_interior) = (count, size, interior);
-        }
-        count += 1;
+        pieces.push((size, interior));
     }
-    best_interior.then(|| piece_of.iter().map(|&p| p == best).collect())
+    let &(largest, interior) = pieces.iter().max_by_key(|(size, _)| *size)?;
+    let kept: Vec<bool> = pieces
+        .iter()
+        .map(|&(size, _)| size * PIECE_SHARE >= largest)
+        .collect();
+    interior.then(|| {
+        piece_of
+            .iter()
+            .map(|&p| p != u32::MAX && kept[p as usize])
+            .collect()
+    })
 }
 
 /// The convex hull (Andrew's monotone chain), its vertices in order.
@@ -216,6 +232,33 @@ mod tests {
         assert_eq!(at(2, 5), 2, "the lip beside it");
         assert_eq!(at(7, 1), 2, "between two crowns, within the margin");
         assert_eq!(at(0, 0), 2, "skin");
+    }
+
+    /// The tongue behind the lower incisors, reaching the lips at both corners, cuts the lower
+    /// crowns off from the interior: the band between them is interior all the same (but for
+    /// its pixels beside the crowns), and a highlight on the lower lip does not widen the
+    /// opening.
+    #[test]
+    fn a_band_between_the_interior_and_crowns_cut_off_from_it_is_interior() {
+        let rows = [
+            "222222222222222222",
+            "222000000000000222",
+            "221111111111111122",
+            "222222222222222222",
+            "222222222222222222",
+            "222222222222222222",
+            "222222222222222222",
+            "222000000000000222",
+            "222222222222222222",
+            "222222222222222202",
+            "222222222222222222",
+        ];
+        let (out, w) = opened(&rows);
+        let at = |x: usize, y: usize| out[y * w + x];
+        assert_eq!(at(8, 4), 1, "the tongue, 3 px above the lower crowns");
+        assert_eq!(at(8, 5), 2, "the tongue beside the lower crowns");
+        assert_eq!(at(1, 4), 2, "the lip beside it");
+        assert_eq!(at(16, 8), 2, "the lip beside the highlight");
     }
 
     /// Lips and skin around an opening; inside it, teeth above the interior with a tongue in

@@ -30,6 +30,11 @@ pub struct SegmentSettings {
     /// 180-degree shutter; 0: no motion blur): a moving arch's edges are then read as the
     /// ramps its motion over that time sweeps (`segment/smear.rs`).
     pub shutter: f64,
+    /// Give the lip pixels beside the teeth that hold at least this share of the crowns'
+    /// chromaticity to the teeth (0.5-1; `None`: off): a crown shaded by a lip is as dark as
+    /// the lip (`segment/shaded_crowns.rs`). Off by default: the masks come closer to the
+    /// truth, the tracked jaw does not (docs/footage.md, "Crowns shaded by the lips").
+    pub shaded_crowns: Option<f32>,
 }
 
 impl Default for SegmentSettings {
@@ -43,6 +48,7 @@ impl Default for SegmentSettings {
             min_pixels: 20,
             soft_evidence: false,
             shutter: 0.5,
+            shaded_crowns: None,
         }
     }
 }
@@ -76,6 +82,14 @@ impl SegmentSettings {
             return bad(
                 "shutter",
                 "must be 0..1 (a share of the time between frames)",
+            );
+        }
+        if let Some(share) = self.shaded_crowns
+            && !(share.is_finite() && (0.5..=1.0).contains(&share))
+        {
+            return bad(
+                "shaded_crowns",
+                "must be 0.5..1 (a share of the crowns' chromaticity) or null",
             );
         }
         Ok(())

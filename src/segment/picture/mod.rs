@@ -14,6 +14,7 @@ use super::graph_cut::GridCut;
 use super::opening::inside_the_lips;
 use super::seeds::{initial_classes, learn_interior};
 use super::settings::SegmentSettings;
+use super::shaded_crowns::shaded_crowns;
 use super::smear::decide_ramps;
 use super::smoothness::{contrast, set_pairs};
 use crate::capture::masks::MOUTH_BIT;
@@ -193,6 +194,9 @@ pub fn segment_picture(
         roi.h,
         expected.smear,
     );
+    if let Some(share) = settings.shaded_crowns {
+        shaded_crowns(&colours, &mut opened, &mut arches, roi.w, roi.h, share);
+    }
     let labels = picture_labels(&opened, &arches, roi, width, height);
     let soft = settings.soft_evidence.then(|| {
         let shares = by_colour(teeth_shares, &opened);
