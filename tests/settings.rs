@@ -377,16 +377,21 @@ fn track_refuses_bad_settings_before_tracking_and_does_not_panic() {
         assert!(!err.contains("panicked"), "{err}");
     }
     // Inline segmentation settings are named by their own option.
-    let out = std::process::Command::new(bin)
-        .args(["segment", cap.to_str().unwrap(), "-o"])
-        .arg(t.path().join("tracks.json"))
-        .args(["--segment-settings", r#"{"reach": -1}"#])
-        .output()
-        .unwrap();
-    let err = String::from_utf8_lossy(&out.stderr);
-    assert_eq!(out.status.code(), Some(1), "{err}");
-    assert!(
-        err.contains("--segment-settings") && err.contains("`reach`"),
-        "{err}"
-    );
+    for (settings, field) in [
+        (r#"{"reach": -1}"#, "reach"),
+        (r#"{"shaded_crowns": 0.2}"#, "shaded_crowns"),
+    ] {
+        let out = std::process::Command::new(bin)
+            .args(["segment", cap.to_str().unwrap(), "-o"])
+            .arg(t.path().join("tracks.json"))
+            .args(["--segment-settings", settings])
+            .output()
+            .unwrap();
+        let err = String::from_utf8_lossy(&out.stderr);
+        assert_eq!(out.status.code(), Some(1), "{settings}: {err}");
+        assert!(
+            err.contains("--segment-settings") && err.contains(&format!("`{field}`")),
+            "{settings}: {err}"
+        );
+    }
 }

@@ -33,7 +33,7 @@ pub struct SegmentSettings {
     /// Give the lip pixels beside the teeth that hold at least this share of the crowns'
     /// chromaticity to the teeth (0.5-1; `None`: off): a crown shaded by a lip is as dark as
     /// the lip (`segment/shaded_crowns.rs`). Off by default: the masks come closer to the
-    /// truth, the tracked jaw does not (docs/footage.md, "Crowns shaded by the lips").
+    /// truth, the tracked jaw only on some takes (docs/footage.md, "Crowns shaded by the lips").
     pub shaded_crowns: Option<f32>,
 }
 

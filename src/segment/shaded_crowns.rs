@@ -11,8 +11,9 @@
 use super::distance::distance_transform;
 use super::edges::{linear_colours, neighbours4};
 
-/// The classes read here: teeth, and lips and skin (1 is the mouth interior).
+/// The classes read here: teeth, the mouth interior, lips and skin.
 const TEETH: u8 = 0;
+const INTERIOR: u8 = 1;
 const LIPS: u8 = 2;
 
 /// How far past the cut (pixels) a shaded crown is followed.
@@ -25,6 +26,11 @@ const LIP_RING_PX: (f32, f32) = (6.0, 14.0);
 /// How far inside the teeth (pixels from any other class) their pixels give the crowns'
 /// chromaticity.
 const CROWN_DEPTH_PX: f32 = 3.0;
+
+/// How far (pixels) a lip pixel taken must lie from the mouth interior. A crown's edge
+/// blurred into the dark interior holds the crown's chromaticity too (the dark adds little
+/// light), and where the opening's margin leaves it lips it is no crown in a lip's shade.
+const INTERIOR_CLEARANCE_PX: f32 = 3.0;
 
 /// The least light (linear, the three channels summed) whose chromaticity is read: a darker
 /// pixel's is mostly the sensor's noise.
@@ -63,6 +69,8 @@ pub(super) fn shaded_crowns(
     let others: Vec<u8> = teeth.iter().map(|&t| 1 - t).collect();
     let (from_teeth, _) = distance_transform(&teeth, w, h);
     let (from_others, _) = distance_transform(&others, w, h);
+    let interior: Vec<u8> = classes.iter().map(|&c| (c == INTERIOR) as u8).collect();
+    let (from_interior, _) = distance_transform(&interior, w, h);
     let crown = median_chroma(&chroma, |i| {
         classes[i] == TEETH && from_others[i] >= CROWN_DEPTH_PX
     });
@@ -87,7 +95,7 @@ pub(super) fn shaded_crowns(
     for _ in 0..REACH_PX {
         let mut taken = Vec::new();
         for i in 0..w * h {
-            if classes[i] != LIPS || !crown_like(i) {
+            if classes[i] != LIPS || from_interior[i] <= INTERIOR_CLEARANCE_PX || !crown_like(i) {
                 continue;
             }
             let beside = neighbours4(w, h, i % w, i / w).find(|&j| classes[j] == TEETH);
@@ -132,17 +140,21 @@ mod tests {
     use crate::capture::light::encoded;
 
     const W: usize = 6;
-    const H: usize = 40;
-    /// Rows 0-19 a crown, 20-39 a lip: the crown's last rows shaded (its colour dimmed),
-    /// then a blurred row of half crown, half lip.
+    const H: usize = 44;
+    /// Rows 0-3 the mouth interior, 4 the crown's edge blurred into it (left lips by the
+    /// opening's margin), 5-23 a crown, 24-43 a lip: the crown's last rows shaded (its colour
+    /// dimmed), then a blurred row of half crown, half lip.
     fn picture() -> (Vec<[u8; 3]>, Vec<u8>, Vec<u8>) {
         let crown = [0.70f32, 0.66, 0.60];
         let lip = [0.35f32, 0.16, 0.15];
+        let dark = [0.01f32, 0.005, 0.005];
         let row_colour = |y: usize| -> [f32; 3] {
             match y {
-                0..=15 => crown,
-                16..=19 => crown.map(|c| c * (0.9 - 0.12 * (y - 15) as f32)),
-                20 => std::array::from_fn(|k| 0.5 * crown[k] * 0.4 + 0.5 * lip[k]),
+                0..=3 => dark,
+                4 => std::array::from_fn(|k| 0.4 * crown[k] + 0.6 * dark[k]),
+                5..=19 => crown,
+                20..=23 => crown.map(|c| c * (0.9 - 0.12 * (y - 19) as f32)),
+                24 => std::array::from_fn(|k| 0.5 * crown[k] * 0.4 + 0.5 * lip[k]),
                 _ => lip,
             }
         };
@@ -150,10 +162,17 @@ mod tests {
             .map(|i| row_colour(i / W).map(|c| encoded(c as f64).round() as u8))
             .collect();
         // The cut gave the shaded rows and the blurred one to the lip.
-        let classes: Vec<u8> = (0..W * H).map(|i| if i / W < 16 { 0 } else { 2 }).collect();
+        let classes: Vec<u8> = (0..W * H)
+            .map(|i| match i / W {
+                0..=3 => INTERIOR,
+                4 => LIPS,
+                5..=19 => TEETH,
+                _ => LIPS,
+            })
+            .collect();
         let arches = classes
             .iter()
-            .map(|&c| if c == 0 { LOWER_BIT } else { 0 })
+            .map(|&c| if c == TEETH { LOWER_BIT } else { 0 })
             .collect();
         (colours, classes, arches)
     }
@@ -163,11 +182,16 @@ mod tests {
         let (colours, mut classes, mut arches) = picture();
         shaded_crowns(&colours, &mut classes, &mut arches, W, H, 0.65);
         let at = |y: usize| (classes[y * W + 2], arches[y * W + 2]);
-        for y in 16..=19 {
+        for y in 20..=23 {
             assert_eq!(at(y), (TEETH, LOWER_BIT), "shaded crown, row {y}");
         }
-        for y in 21..H {
+        for y in 25..H {
             assert_eq!(at(y), (LIPS, 0), "lip, row {y}");
         }
+        assert_eq!(
+            at(4),
+            (LIPS, 0),
+            "the crown's edge blurred into the interior"
+        );
     }
 }
